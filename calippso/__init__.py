@@ -1,0 +1,39 @@
+"""calippso: jam hard-particle packings exactly, and read what the jammed packing says.
+
+The top-level import is light (numpy only). The LP machinery (`jam`), the readers and the
+analysis are imported on first use; numba is never imported from here (the Numba generators
+live in the separate `generators` package).
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from .packing import Packing
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "jam": ("calippso.ilp", "jam"),
+    "JamSettings": ("calippso.settings", "JamSettings"),
+    "JammingError": ("calippso.errors", "JammingError"),
+    "JammingResult": ("calippso.result", "JammingResult"),
+    "load_result": ("calippso.result", "load_result"),
+    "read": ("calippso.io", "read"),
+    "write": ("calippso.io", "write"),
+}
+
+__all__ = ["Packing", "__version__", *_LAZY]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        module_name, attribute = _LAZY[name]
+        value = getattr(importlib.import_module(module_name), attribute)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'calippso' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

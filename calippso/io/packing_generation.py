@@ -1,0 +1,73 @@
+"""PackingGeneration (Baranau's C++ code): `packing.xyzd` + `packing.nfo` + `generation.conf`.
+
+`packing.xyzd` holds little-endian float64 (x, y, z, d) per particle, d the nominal diameter.
+The true diameters are d · ((1 − final porosity)/(1 − theoretical porosity))^(1/3), with the
+porosities from `packing.nfo`. The box side comes from "Packing size:" in `generation.conf`.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..packing import Packing
+
+
+def _field(text: str, label: str, path: Path) -> list[float]:
+    match = re.search(rf"{label}\s*:\s*([^\n(]+)", text)
+    if not match:
+        raise ValueError(f"{path}: no '{label}:' line")
+    try:
+        return [float(v) for v in match.group(1).split()]
+    except ValueError:
+        raise ValueError(f"{path}: '{label}:' is not numeric: {match.group(1)!r}") from None
+
+
+def read(path: Path) -> Packing:
+    """Read a PackingGeneration folder (or its `.xyzd` file with the two text files beside it)."""
+    path = Path(path)
+    folder = path if path.is_dir() else path.parent
+    xyzd = folder / "packing.xyzd" if path.is_dir() else path
+    conf, nfo = folder / "generation.conf", folder / "packing.nfo"
+    for needed in (conf, nfo):
+        if not needed.exists():
+            raise ValueError(f"{xyzd}: {needed.name} is missing beside it (needed for the "
+                             f"{'box size' if needed is conf else 'diameter rescaling'})")
+    raw = np.fromfile(xyzd, dtype="<f8")
+    if raw.size == 0 or raw.size % 4:
+        raise ValueError(f"{xyzd}: {raw.size * 8} bytes is not a whole number of (x, y, z, d) records")
+    records = raw.reshape(-1, 4)
+    conf_text = conf.read_text()
+    box = np.array(_field(conf_text, "Packing size", conf))
+    count = _field(conf_text, "Particles count", conf)[0]
+    if int(count) != records.shape[0]:
+        raise ValueError(f"{xyzd}: {records.shape[0]} particles but generation.conf says {int(count)}")
+    nfo_text = nfo.read_text()
+    theoretical = _field(nfo_text, "Theoretical Porosity", nfo)[0]
+    final = _field(nfo_text, "Final Porosity", nfo)[0]
+    scale = ((1.0 - final) / (1.0 - theoretical)) ** (1.0 / 3.0)
+    return Packing(records[:, :3], records[:, 3] * scale, box)
+
+
+def write(packing: Packing, path: Path) -> Path:
+    """Write `packing.xyzd` with true diameters, plus a consistent `packing.nfo` and `generation.conf`.
+
+    The `.nfo` states equal final and theoretical porosity, so reading back applies no rescale.
+    """
+    if packing.d != 3:
+        raise ValueError(f"PackingGeneration files hold d = 3 only, this packing has d = {packing.d}")
+    path = Path(path)
+    folder = path if path.suffix != ".xyzd" else path.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    xyzd = folder / "packing.xyzd" if path.suffix != ".xyzd" else path
+    records = np.column_stack([packing.wrapped().positions, packing.diameters]).astype("<f8")
+    records.tofile(xyzd)
+    porosity = 1.0 - packing.phi
+    (folder / "packing.nfo").write_text(
+        f"N: {packing.n}\n Theoretical Porosity: {porosity:.17g}\nFinal Porosity: {porosity:.17g}\n")
+    (folder / "generation.conf").write_text(
+        f"Particles count: {packing.n}\nPacking size: "
+        + " ".join(f"{v:.17g}" for v in packing.box) + "\n")
+    return xyzd

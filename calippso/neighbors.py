@@ -1,0 +1,120 @@
+"""Periodic pair search: every pair of particles closer than a cutoff, without any N×N array.
+
+Built on `scipy.spatial.cKDTree` with `boxsize`, which applies the minimum-image convention.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .packing import minimum_image, wrap
+
+__all__ = ["Pairs", "pairs_within", "close_pairs", "min_gap"]
+
+
+@dataclass(frozen=True)
+class Pairs:
+    """A list of particle pairs with their minimum-image geometry.
+
+    Attributes
+    ----------
+    i, j : ndarray, shape (M,), int64
+        Particle indices with i < j.
+    vectors : ndarray, shape (M, d)
+        Minimum-image separation r_i − r_j, in length units.
+    distances : ndarray, shape (M,)
+        |r_i − r_j|.
+    sigma : ndarray, shape (M,)
+        Contact distance σ_ij = (σ_i + σ_j)/2.
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    vectors: np.ndarray
+    distances: np.ndarray
+    sigma: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.i.shape[0])
+
+    @property
+    def gaps(self) -> np.ndarray:
+        """Relative gaps h_ij = |r_ij|/σ_ij − 1 (negative for an overlap), shape (M,)."""
+        return self.distances / self.sigma - 1.0
+
+    def subset(self, mask: np.ndarray) -> "Pairs":
+        """The pairs selected by a boolean mask or an index array."""
+        return Pairs(self.i[mask], self.j[mask], self.vectors[mask], self.distances[mask],
+                     self.sigma[mask])
+
+
+def pairs_within(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                 cutoff: float) -> Pairs:
+    """All pairs whose centre-to-centre distance is at most `cutoff`.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    cutoff : float
+        Largest centre distance kept, in length units; must be below half the smallest box
+        side so that the minimum image is unique.
+
+    Returns
+    -------
+    Pairs
+        Sorted by (i, j).
+    """
+    if not cutoff < 0.5 * float(np.min(box)):
+        raise ValueError(
+            f"pair cutoff {cutoff:g} is not below half the smallest box side {np.min(box):g}"
+        )
+    inside = wrap(np.asarray(positions, dtype=np.float64), box)
+    tree = cKDTree(inside, boxsize=box)
+    ij = tree.query_pairs(cutoff, output_type="ndarray").astype(np.int64, copy=False)
+    if ij.shape[0]:
+        ij.sort(axis=1)
+        ij = ij[np.lexsort((ij[:, 1], ij[:, 0]))]
+    i, j = ij[:, 0], ij[:, 1]
+    vectors = minimum_image(inside[i] - inside[j], box)
+    distances = np.sqrt(np.einsum("md,md->m", vectors, vectors))
+    sigma = 0.5 * (diameters[i] + diameters[j])
+    return Pairs(i, j, vectors, distances, sigma)
+
+
+def close_pairs(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                max_gap: float) -> Pairs:
+    """Pairs with surface separation |r_ij| − σ_ij ≤ `max_gap` (length units), overlaps included.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    max_gap : float
+        Largest surface-to-surface distance kept, in length units (≥ 0).
+    """
+    reach = float(np.max(diameters)) + max_gap
+    pairs = pairs_within(positions, diameters, box, reach)
+    return pairs.subset(pairs.distances - pairs.sigma <= max_gap)
+
+
+def min_gap(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray) -> tuple[float, int]:
+    """Smallest relative gap h_ij = |r_ij|/σ_ij − 1 over all touching or overlapping pairs.
+
+    Returns
+    -------
+    (float, int)
+        The smallest gap among pairs within contact range (0.0 if no pair is that close,
+        in which case the packing is certainly overlap-free) and the number of overlapping
+        pairs (h < 0).
+    """
+    pairs = close_pairs(positions, diameters, box, 0.0)
+    if len(pairs) == 0:
+        return 0.0, 0
+    gaps = pairs.gaps
+    return float(gaps.min()), int(np.count_nonzero(gaps < 0))

@@ -1,0 +1,188 @@
+"""The `Packing` type: hard (hyper)spheres in a periodic box, and the periodic geometry helpers.
+
+This module imports numpy only, so that every part of the project (the LP core, the Numba
+generators, the readers) can share it without pulling in anything heavy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import gamma, pi
+
+import numpy as np
+
+__all__ = ["Packing", "ball_volume", "minimum_image", "wrap"]
+
+
+def ball_volume(d: int, radius: np.ndarray | float) -> np.ndarray | float:
+    """Volume of a d-dimensional ball, V_d(r) = π^{d/2} r^d / Γ(d/2 + 1).
+
+    Parameters
+    ----------
+    d : int
+        Dimension (≥ 1).
+    radius : float or ndarray
+        Radius or radii, in length units.
+
+    Returns
+    -------
+    float or ndarray
+        Volume(s) in length^d, same shape as `radius`.
+    """
+    return pi ** (d / 2) * np.asarray(radius, dtype=float) ** d / gamma(d / 2 + 1)
+
+
+def wrap(positions: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """Wrap positions into the half-open box [0, L) in every direction.
+
+    `x % L` can round to exactly L for tiny negative x; such values are set to 0 so that the
+    result is strictly inside [0, L) (as `scipy.spatial.cKDTree(boxsize=L)` requires).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+    box : ndarray, shape (d,)
+
+    Returns
+    -------
+    ndarray, shape (N, d)
+        A new array with every coordinate in [0, L_μ).
+    """
+    wrapped = np.mod(positions, box)
+    wrapped[wrapped >= box] = 0.0
+    return wrapped
+
+
+def minimum_image(delta: np.ndarray, box: np.ndarray) -> np.ndarray:
+    """Minimum-image convention: r − L·round(r/L), componentwise.
+
+    Parameters
+    ----------
+    delta : ndarray, shape (..., d)
+        Raw separation vectors r_i − r_j.
+    box : ndarray, shape (d,)
+
+    Returns
+    -------
+    ndarray, shape (..., d)
+        Separations with every component in [−L/2, L/2].
+    """
+    return delta - box * np.round(delta / box)
+
+
+def _as_float_array(value, name: str, ndim: int) -> np.ndarray:
+    try:
+        array = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{name} must be numeric, got {type(value).__name__}: {error}") from None
+    if array.ndim != ndim:
+        expected = "(N, d)" if ndim == 2 else "a 1-d array"
+        raise ValueError(f"{name} must have shape {expected}, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        bad = int(np.count_nonzero(~np.isfinite(array)))
+        raise ValueError(f"{name} contains {bad} non-finite value(s) (NaN or inf)")
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class Packing:
+    """Hard (hyper)spheres in a periodic, rectangular box.
+
+    Parameters
+    ----------
+    positions : array_like, shape (N, d)
+        Particle centres, in length units. Any real values; `wrapped()` maps them into the box.
+    diameters : array_like, shape (N,)
+        Particle diameters σ_i > 0, in length units.
+    box : array_like, shape (d,) or scalar
+        Box side lengths L_μ > 0 (a scalar means a cubic box).
+
+    Raises
+    ------
+    ValueError
+        On wrong shapes, non-finite values, non-positive diameters or box sides, d < 2, an
+        empty packing, or a particle wider than half the smallest box side (the minimum-image
+        convention could then miss contacts).
+
+    Notes
+    -----
+    Overlaps are not checked here (a Poisson start overlaps on purpose); `calippso.jam` and the
+    generators check them where it matters.
+    """
+
+    positions: np.ndarray
+    diameters: np.ndarray
+    box: np.ndarray
+
+    def __post_init__(self) -> None:
+        positions = _as_float_array(self.positions, "positions", 2)
+        diameters = _as_float_array(self.diameters, "diameters", 1)
+        n, d = positions.shape
+        if n == 0:
+            raise ValueError("the packing is empty: positions has no rows")
+        if d < 2:
+            raise ValueError(f"dimension d must be at least 2, got d = {d}")
+        if diameters.shape[0] != n:
+            raise ValueError(
+                f"diameters has {diameters.shape[0]} entries but positions has {n} particles"
+            )
+        if np.any(diameters <= 0):
+            raise ValueError(
+                f"diameters must be > 0; found {int(np.count_nonzero(diameters <= 0))} "
+                f"non-positive (smallest {diameters.min():g})"
+            )
+        box_input = [self.box] * d if np.ndim(self.box) == 0 else self.box
+        box = _as_float_array(box_input, "box", 1)
+        if box.shape[0] != d:
+            raise ValueError(f"box has {box.shape[0]} sides but positions are {d}-dimensional")
+        if np.any(box <= 0):
+            raise ValueError(f"box sides must be > 0, got {box.tolist()}")
+        if diameters.max() >= 0.5 * box.min():
+            raise ValueError(
+                f"box too small: the largest diameter {diameters.max():g} is not below half the "
+                f"smallest box side {box.min():g}; the periodic images would interact"
+            )
+        for name, array in (("positions", positions), ("diameters", diameters), ("box", box)):
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
+
+    @property
+    def n(self) -> int:
+        """Number of particles N."""
+        return self.positions.shape[0]
+
+    @property
+    def d(self) -> int:
+        """Dimension d."""
+        return self.positions.shape[1]
+
+    @property
+    def volume(self) -> float:
+        """Box volume Π L_μ, in length^d."""
+        return float(np.prod(self.box))
+
+    @property
+    def phi(self) -> float:
+        """Packing fraction φ = Σ_i V_d(σ_i/2) / Π L_μ (overlaps counted twice)."""
+        return float(np.sum(ball_volume(self.d, self.diameters / 2)) / self.volume)
+
+    @property
+    def mean_diameter(self) -> float:
+        """Mean diameter, the unit of every tolerance in the project."""
+        return float(self.diameters.mean())
+
+    def wrapped(self) -> "Packing":
+        """The same packing with every position inside [0, L)."""
+        return Packing(wrap(self.positions, self.box), self.diameters, self.box)
+
+    def scaled_to_phi(self, phi: float) -> "Packing":
+        """The same centres with all diameters scaled by one factor to reach packing fraction `phi`."""
+        if not phi > 0:
+            raise ValueError(f"phi must be > 0, got {phi}")
+        factor = (phi / self.phi) ** (1.0 / self.d)
+        return Packing(self.positions, self.diameters * factor, self.box)
+
+    def __repr__(self) -> str:
+        polydisperse = np.ptp(self.diameters) > 1e-12 * self.diameters.max()
+        kind = "polydisperse" if polydisperse else "monodisperse"
+        return f"Packing(n={self.n}, d={self.d}, phi={self.phi:.6f}, {kind}, box={self.box.tolist()})"

@@ -1,0 +1,273 @@
+"""`JammingResult`: what `calippso.jam` returns, and its `.npz` storage.
+
+Keys of the `.npz` file written by `JammingResult.save` (all arrays; scalars are 0-d arrays):
+
+==========================  ===============  ===============================================
+key                         shape / dtype    meaning
+==========================  ===============  ===============================================
+positions                   (N, d) float64   jammed centres, wrapped into [0, L)
+diameters                   (N,) float64     jammed diameters
+box                         (d,) float64     box side lengths
+contacts                    (M, 2) int64     contact pairs (i < j) among stable particles
+forces                      (M,) float64     contact force magnitudes, mean 1
+rattlers                    (N,) bool        True for rattlers
+converged                   () bool          both convergence criteria met
+iterations                  () int64         number of LPs solved
+status                      () str           one sentence on how the run ended
+wall_time                   () float64       seconds from the call to the verified result
+force_balance               () float64       max_i |Σ_j f_ij n_ij| / mean force (stable i)
+dual_normalization          () float64       Σ λ_ij σ_ij² over contacts (1 up to round-off)
+solver                      () str           backend name
+history_<column>            (iterations,)    one entry per LP, see `HISTORY_COLUMNS`
+==========================  ===============  ===============================================
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .packing import Packing
+
+__all__ = ["JammingResult", "load_result", "HISTORY_COLUMNS", "empty_history"]
+
+#: Columns of `JammingResult.history` (a numpy structured array, one record per LP).
+HISTORY_COLUMNS: dict[str, tuple[type, str]] = {
+    "wall_time": (np.float64, "seconds since the call to jam, at the end of this iteration"),
+    "solver_time": (np.float64, "seconds spent inside the LP solver for this iteration"),
+    "sqrt_gamma_minus_1": (np.float64, "√Γ* − 1, the relative diameter growth of this LP"),
+    "max_displacement": (np.float64, "max |s_iμ| over non-rattlers, in mean diameters"),
+    "rows": (np.int64, "pair constraints (rows) in the LP"),
+    "step_bound": (np.float64, "bound on each displacement component, in mean diameters"),
+    "n_contacts": (np.int64, "contacts among non-rattlers after this LP"),
+    "isostaticity_gap": (np.int64, "N_c − d (N_s − 1) − 1 after this LP"),
+    "force_balance": (np.float64, "max |Σ f n| / mean force over stable particles"),
+    "min_gap": (np.float64, "smallest h_ij = |r_ij|/σ_ij − 1 after the update"),
+    "phi": (np.float64, "packing fraction after the update"),
+}
+
+_HISTORY_DTYPE = np.dtype([(name, dtype) for name, (dtype, _) in HISTORY_COLUMNS.items()])
+
+
+def empty_history() -> np.ndarray:
+    """A history array with no records (dtype with the `HISTORY_COLUMNS` fields)."""
+    return np.zeros(0, dtype=_HISTORY_DTYPE)
+
+
+def history_from_records(records: list[dict]) -> np.ndarray:
+    """Build the structured history array from a list of per-iteration dicts."""
+    history = np.zeros(len(records), dtype=_HISTORY_DTYPE)
+    for k, record in enumerate(records):
+        for name in HISTORY_COLUMNS:
+            history[name][k] = record[name]
+    return history
+
+
+@dataclass(eq=False)
+class JammingResult:
+    """The jammed packing, its contact network and forces, and how the run went.
+
+    Attributes
+    ----------
+    packing : Packing
+        The final packing (wrapped into the box), with no overlap.
+    contacts : ndarray, shape (M, 2), int64
+        Contact pairs (i < j) among stable (non-rattler) particles.
+    forces : ndarray, shape (M,)
+        Contact force magnitudes, normalised to mean 1. Force on i from j points along
+        −n_ij = −r_ij/|r_ij| (repulsive).
+    rattlers : ndarray, shape (N,), bool
+        Particles removed recursively for having fewer than d + 1 contacts.
+    converged : bool
+        √Γ − 1 < tol_gamma and max |s| over non-rattlers < tol_s.
+    status : str
+        One sentence on how the run ended (and any repair that was applied).
+    iterations : int
+        Number of LPs solved (including a final force clean-up LP, if one was needed).
+    history : ndarray, structured
+        One record per LP; fields are `HISTORY_COLUMNS`. `history["phi"]` is a column.
+    wall_time : float
+        Seconds from the call to `jam` to the verified result.
+    force_balance : float
+        max over stable particles of |Σ_j f_ij n_ij| / mean force.
+    dual_normalization : float
+        Σ λ_ij σ_ij² over contacts of the last LP (1 up to round-off).
+    solver : str
+        The backend that solved the last LP.
+    """
+
+    packing: Packing
+    contacts: np.ndarray
+    forces: np.ndarray
+    rattlers: np.ndarray
+    converged: bool
+    status: str
+    iterations: int
+    history: np.ndarray = field(default_factory=empty_history)
+    wall_time: float = 0.0
+    force_balance: float = float("nan")
+    dual_normalization: float = float("nan")
+    solver: str = ""
+
+    @property
+    def d(self) -> int:
+        """Dimension."""
+        return self.packing.d
+
+    @property
+    def phi(self) -> float:
+        """Jamming packing fraction φ_J."""
+        return self.packing.phi
+
+    @property
+    def n_stable(self) -> int:
+        """Number of stable (non-rattler) particles N_s."""
+        return int(self.packing.n - np.count_nonzero(self.rattlers))
+
+    @property
+    def n_contacts(self) -> int:
+        """Number of contacts N_c among stable particles."""
+        return int(self.contacts.shape[0])
+
+    @property
+    def isostaticity_gap(self) -> int:
+        """N_c − d (N_s − 1) − 1: zero for an isostatic packing."""
+        return self.n_contacts - self.d * (self.n_stable - 1) - 1
+
+    @property
+    def isostatic(self) -> bool:
+        """True when N_c = d (N_s − 1) + 1."""
+        return self.isostaticity_gap == 0
+
+    @property
+    def rattler_fraction(self) -> float:
+        """Fraction of particles that are rattlers."""
+        return float(np.count_nonzero(self.rattlers)) / self.packing.n
+
+    @property
+    def contact_numbers(self) -> np.ndarray:
+        """Contacts per particle, shape (N,), int64 (0 for rattlers)."""
+        return np.bincount(self.contacts.ravel(), minlength=self.packing.n).astype(np.int64)
+
+    @property
+    def contact_vectors(self) -> np.ndarray:
+        """Minimum-image r_i − r_j for every contact, shape (M, d)."""
+        from .packing import minimum_image
+
+        i, j = self.contacts[:, 0], self.contacts[:, 1]
+        return minimum_image(self.packing.positions[i] - self.packing.positions[j],
+                             self.packing.box)
+
+    def summary(self) -> str:
+        """A few lines describing the result, for humans."""
+        lines = [
+            f"{self.status}",
+            f"  N = {self.packing.n}, d = {self.d}, phi_J = {self.phi:.10f}",
+            f"  LPs = {self.iterations}, wall time = {self.wall_time:.2f} s, solver = {self.solver}",
+            f"  stable = {self.n_stable}, rattlers = {self.packing.n - self.n_stable} "
+            f"({100 * self.rattler_fraction:.2f} %)",
+            f"  contacts = {self.n_contacts}, isostaticity gap = {self.isostaticity_gap} "
+            f"({'isostatic' if self.isostatic else 'NOT isostatic'})",
+            f"  force balance = {self.force_balance:.2e}, sum lambda sigma^2 = "
+            f"{self.dual_normalization:.15f}",
+        ]
+        if self.history.shape[0]:
+            lines.append(f"  min gap = {self.history['min_gap'][-1]:.2e} (relative to sigma_ij)")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (f"JammingResult(n={self.packing.n}, d={self.d}, phi={self.phi:.8f}, "
+                f"contacts={self.n_contacts}, stable={self.n_stable}, "
+                f"isostatic={self.isostatic}, converged={self.converged}, "
+                f"iterations={self.iterations})")
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Everything as a flat mapping of arrays (the `.npz` keys documented in this module)."""
+        arrays = {
+            "positions": self.packing.positions,
+            "diameters": self.packing.diameters,
+            "box": self.packing.box,
+            "contacts": self.contacts,
+            "forces": self.forces,
+            "rattlers": self.rattlers,
+            "converged": np.array(self.converged),
+            "iterations": np.array(self.iterations, dtype=np.int64),
+            "status": np.array(self.status),
+            "wall_time": np.array(self.wall_time),
+            "force_balance": np.array(self.force_balance),
+            "dual_normalization": np.array(self.dual_normalization),
+            "solver": np.array(self.solver),
+        }
+        for name in HISTORY_COLUMNS:
+            arrays[f"history_{name}"] = self.history[name]
+        return arrays
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the result to an `.npz` file, atomically (a crash never leaves half a file).
+
+        Returns
+        -------
+        Path
+            The path written (".npz" is appended if missing).
+        """
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        save_npz_atomic(path, self.to_arrays())
+        return path
+
+    @classmethod
+    def from_arrays(cls, arrays) -> "JammingResult":
+        """Rebuild a result from the mapping written by `to_arrays` (e.g. an open `.npz`)."""
+        missing = [k for k in ("positions", "diameters", "box", "contacts", "forces", "rattlers")
+                   if k not in arrays]
+        if missing:
+            raise ValueError(f"not a calippso result file: missing keys {missing}")
+        records = len(arrays["history_wall_time"]) if "history_wall_time" in arrays else 0
+        history = np.zeros(records, dtype=_HISTORY_DTYPE)
+        for name in HISTORY_COLUMNS:
+            key = f"history_{name}"
+            if key in arrays:
+                history[name] = arrays[key]
+
+        def scalar(key, default, kind):
+            return kind(arrays[key][()]) if key in arrays else default
+
+        return cls(
+            packing=Packing(arrays["positions"], arrays["diameters"], arrays["box"]),
+            contacts=np.asarray(arrays["contacts"], dtype=np.int64).reshape(-1, 2),
+            forces=np.asarray(arrays["forces"], dtype=np.float64),
+            rattlers=np.asarray(arrays["rattlers"], dtype=bool),
+            converged=scalar("converged", False, bool),
+            status=scalar("status", "", str),
+            iterations=scalar("iterations", 0, int),
+            history=history,
+            wall_time=scalar("wall_time", float("nan"), float),
+            force_balance=scalar("force_balance", float("nan"), float),
+            dual_normalization=scalar("dual_normalization", float("nan"), float),
+            solver=scalar("solver", "", str),
+        )
+
+
+def save_npz_atomic(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write an `.npz` through a temporary file in the same folder, then rename it into place."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            np.savez(stream, **arrays)
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def load_result(path: str | os.PathLike) -> JammingResult:
+    """Read a `JammingResult` written by `JammingResult.save`."""
+    with np.load(path, allow_pickle=False) as data:
+        return JammingResult.from_arrays({key: data[key] for key in data.files})
