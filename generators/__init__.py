@@ -2,3 +2,10 @@
 
 Importing this package never imports an LP solver; the generators return `calippso.Packing`.
 """
+
+from . import diameters
+from .initial import poisson
+from .ls import lubachevsky_stillinger
+from .result import GenerationResult
+
+__all__ = ["GenerationResult", "diameters", "poisson", "lubachevsky_stillinger"]

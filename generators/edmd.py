@@ -1,0 +1,368 @@
+"""Numba event-driven molecular dynamics of growing hard spheres in d dimensions (LS and MLS).
+
+Model (mass 1, k_B = 1): particle i has diameter σ_i(t) = s_i · a(t), a(t) = a₀ + γ t, with
+s_i its nominal diameter and γ the growth rate (length per time unit, for s = 1). Between
+events the spheres move ballistically.
+
+Events, one per particle, kept in an indexed binary min-heap:
+
+* collision with a Verlet neighbour j: the smallest τ > 0 with |r_ij + v_ij τ| = S_ij a(t + τ),
+  S_ij = (s_i + s_j)/2. The normal relative velocity u is replaced by 2w − u, w = S_ij γ the
+  speed at which the contact distance grows, so the pair separates faster than it grows; the
+  impulse J = w − u goes into the collisional virial. A prediction stores the partner's
+  collision counter and is discarded when it is popped after the partner has collided.
+* neighbour-list expiry: the Verlet lists hold every pair with |r_ij| < S_ij a_b + δ at the
+  build (scale a_b). A pair outside the lists cannot touch while every particle has moved less
+  than h(t) = (δ − s_max (a(t) − a_b))/2 since the build, so the moment a particle reaches that
+  distance is an event; it rebuilds the lists (all particles synchronised, cell lists).
+
+Every `rescale_every` collisions all particles are synchronised, the velocities are rescaled to
+the target temperature (the growth injects kinetic energy) and every prediction is redone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .cells import verlet_lists
+
+__all__ = ["run_window", "skin_length"]
+
+_NO_EVENT = -2
+_LIST_EXPIRY = -1
+
+
+@njit(cache=True)
+def skin_length(box: np.ndarray, n: int, scale: float, s_mean: float, s_max: float,
+                skin: float) -> float:
+    """Verlet skin δ: `skin` mean diameters, widened at low density to the mean spacing.
+
+    δ = max(skin · s̄ a, (V/N)^{1/d} − s_max a), capped so that the list radius s_max a + δ
+    stays below 0.49 L_min (minimum image). Returns a negative value if the particles are too
+    large for the box.
+    """
+    d = box.shape[0]
+    volume = 1.0
+    for mu in range(d):
+        volume *= box[mu]
+    spacing = (volume / n) ** (1.0 / d)
+    delta = max(skin * s_mean * scale, spacing - s_max * scale)
+    return min(delta, 0.49 * box.min() - s_max * scale)
+
+
+@njit(cache=True)
+def _sift_up(heap, where, key, k):
+    item = heap[k]
+    while k > 0:
+        parent = (k - 1) >> 1
+        if key[heap[parent]] <= key[item]:
+            break
+        heap[k] = heap[parent]
+        where[heap[k]] = k
+        k = parent
+    heap[k] = item
+    where[item] = k
+
+
+@njit(cache=True)
+def _sift_down(heap, where, key, k):
+    n = heap.shape[0]
+    item = heap[k]
+    while True:
+        child = 2 * k + 1
+        if child >= n:
+            break
+        if child + 1 < n and key[heap[child + 1]] < key[heap[child]]:
+            child += 1
+        if key[item] <= key[heap[child]]:
+            break
+        heap[k] = heap[child]
+        where[heap[k]] = k
+        k = child
+    heap[k] = item
+    where[item] = k
+
+
+@njit(cache=True)
+def _heapify(heap, where, key):
+    n = heap.shape[0]
+    for k in range(n):
+        heap[k] = k
+        where[k] = k
+    for k in range(n // 2 - 1, -1, -1):
+        _sift_down(heap, where, key, k)
+
+
+@njit(cache=True)
+def _reposition(heap, where, key, i):
+    _sift_up(heap, where, key, where[i])
+    _sift_down(heap, where, key, where[i])
+
+
+@njit(cache=True)
+def _expiry_time(x, xb, v, i, c, e):
+    """Smallest τ > 0 with |D + v τ| = c − e τ (D = x_i − xb_i, |D| < c), at most c/e."""
+    d = x.shape[1]
+    dd = 0.0
+    dv = 0.0
+    vv = 0.0
+    for mu in range(d):
+        disp = x[i, mu] - xb[i, mu]
+        dd += disp * disp
+        dv += disp * v[i, mu]
+        vv += v[i, mu] * v[i, mu]
+    if c <= 0.0 or dd >= c * c:
+        return 0.0
+    limit = c / e if e > 0.0 else np.inf
+    qa = vv - e * e
+    qb = dv + c * e
+    qc = dd - c * c  # < 0
+    disc = qb * qb - qa * qc
+    tau = np.inf
+    if qa > 0.0:
+        root = np.sqrt(disc)
+        tau = -qc / (qb + root) if qb >= 0.0 else (-qb + root) / qa
+    elif qa < 0.0 and disc >= 0.0:
+        root = np.sqrt(disc)
+        for cand in ((-qb + root) / qa, (-qb - root) / qa):
+            if 0.0 < cand < tau:
+                tau = cand
+    elif qa == 0.0 and qb > 0.0:
+        tau = -qc / (2.0 * qb)
+    return min(tau, limit)
+
+
+@njit(cache=True)
+def _predict(i, t, x, v, tl, s, box, scale, rate, start, neighbours, counter, xb, c_exp, e_exp,
+             ev_time, ev_partner, ev_count):
+    """Next event of particle i (synchronised at time t); stored in the ev_* arrays."""
+    d = x.shape[1]
+    best = t + _expiry_time(x, xb, v, i, c_exp, e_exp)
+    partner = _LIST_EXPIRY
+    count = 0
+    for k in range(start[i], start[i + 1]):
+        j = neighbours[k]
+        dt = t - tl[j]
+        rr = 0.0
+        rv = 0.0
+        vv = 0.0
+        for mu in range(d):
+            dx = x[i, mu] - x[j, mu] - v[j, mu] * dt
+            dx -= box[mu] * np.rint(dx / box[mu])
+            dv = v[i, mu] - v[j, mu]
+            rr += dx * dx
+            rv += dx * dv
+            vv += dv * dv
+        sig = 0.5 * (s[i] + s[j])
+        contact = sig * scale
+        qa = vv - sig * sig * rate * rate
+        qb = rv - sig * contact * rate
+        qc = rr - contact * contact
+        if qc <= 0.0:
+            if qb >= 0.0:
+                continue
+            tau = 0.0
+        elif qb < 0.0:
+            disc = qb * qb - qa * qc
+            if disc < 0.0:
+                continue
+            tau = qc / (-qb + np.sqrt(disc))
+        elif qa < 0.0:
+            tau = (-qb - np.sqrt(qb * qb - qa * qc)) / qa
+        else:
+            continue
+        if t + tau < best:
+            best = t + tau
+            partner = j
+            count = counter[j]
+    ev_time[i] = best
+    ev_partner[i] = partner
+    ev_count[i] = count
+
+
+@njit(cache=True)
+def _advance(x, v, tl, i, t):
+    dt = t - tl[i]
+    for mu in range(x.shape[1]):
+        x[i, mu] += v[i, mu] * dt
+    tl[i] = t
+
+
+@njit(cache=True)
+def _temperature(v):
+    n, d = v.shape
+    total = 0.0
+    for i in range(n):
+        for mu in range(d):
+            total += v[i, mu] * v[i, mu]
+    return total / (n * d)
+
+
+@njit(cache=True)
+def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_every, skin,
+               max_time):
+    """Run event-driven MD with growing diameters for `n_collisions` collisions.
+
+    Parameters
+    ----------
+    x : ndarray, shape (N, d)
+        Positions (non-overlapping at `scale`); updated in place, wrapped into the box.
+    v : ndarray, shape (N, d)
+        Velocities; updated in place.
+    s : ndarray, shape (N,)
+        Nominal diameters; the diameters are s · a(t).
+    box : ndarray, shape (d,)
+        Box sides.
+    scale : float
+        a at the start of the window.
+    rate : float
+        Growth rate γ = da/dt (0 for equilibration at fixed diameters).
+    temperature : float
+        Target kT; velocities are rescaled to it every `rescale_every` collisions.
+    n_collisions : int
+        Collisions to process.
+    rescale_every : int
+        Collisions between velocity rescalings (and full re-predictions).
+    skin : float
+        Verlet skin in mean nominal diameters (see `skin_length`).
+    max_time : float
+        Stop at this time even if fewer collisions happened.
+
+    Returns
+    -------
+    elapsed : float
+        Simulated time of the window.
+    scale_end : float
+        a at the end.
+    virial : float
+        Σ_c |r_c| J_c over the collisions (length × momentum).
+    kt_time : float
+        ∫ kT dt over the window (trapezoid between rescalings), for the reduced pressure
+        p = 1 + virial / (d N kt_time).
+    collisions : int
+    rebuilds : int
+        Neighbour-list rebuilds.
+    """
+    n, d = x.shape
+    s_mean = s.mean()
+    s_max = s.max()
+    tl = np.zeros(n)
+    xb = np.empty_like(x)
+    counter = np.zeros(n, dtype=np.int64)
+    ev_time = np.empty(n)
+    ev_partner = np.empty(n, dtype=np.int64)
+    ev_count = np.empty(n, dtype=np.int64)
+    heap = np.empty(n, dtype=np.int64)
+    where = np.empty(n, dtype=np.int64)
+    t = 0.0
+    virial = 0.0
+    kt_time = 0.0
+    collisions = 0
+    rebuilds = -1
+    t_rescale = 0.0
+    kt_start = _temperature(v)
+    since_rescale = 0
+    rebuild = True
+    resync = True
+    build_scale = scale
+    delta = 0.0
+    start = np.zeros(n + 1, dtype=np.int64)
+    neighbours = np.zeros(0, dtype=np.int64)
+    r = np.empty(d)
+    while True:
+        if rebuild or resync:
+            for i in range(n):
+                _advance(x, v, tl, i, t)
+            if rebuild:
+                rebuilds += 1
+                for i in range(n):
+                    for mu in range(d):
+                        x[i, mu] -= box[mu] * np.floor(x[i, mu] / box[mu])
+                        if x[i, mu] >= box[mu] or x[i, mu] < 0.0:
+                            x[i, mu] = 0.0
+                xb[:, :] = x
+                build_scale = scale + rate * t
+                delta = skin_length(box, n, build_scale, s_mean, s_max, skin)
+                if delta <= 0.0:
+                    raise ValueError("particles too large for the box: no room for a neighbour list")
+                start, neighbours = verlet_lists(x, box, s * build_scale, delta)
+            now = scale + rate * t
+            c_exp = 0.5 * (delta - s_max * (now - build_scale))
+            for i in range(n):
+                _predict(i, t, x, v, tl, s, box, now, rate, start, neighbours, counter, xb,
+                         c_exp, 0.5 * s_max * rate, ev_time, ev_partner, ev_count)
+            _heapify(heap, where, ev_time)
+            rebuild = False
+            resync = False
+        if collisions >= n_collisions:
+            break
+        i = heap[0]
+        t_event = ev_time[i]
+        if t_event >= max_time:
+            t = max_time
+            for k in range(n):
+                _advance(x, v, tl, k, t)
+            break
+        t = t_event
+        now = scale + rate * t
+        c_exp = 0.5 * (delta - s_max * (now - build_scale))
+        e_exp = 0.5 * s_max * rate
+        j = ev_partner[i]
+        if j == _LIST_EXPIRY:
+            rebuild = True
+            continue
+        if j == _NO_EVENT or ev_count[i] != counter[j]:
+            _advance(x, v, tl, i, t)
+            _predict(i, t, x, v, tl, s, box, now, rate, start, neighbours, counter, xb, c_exp,
+                     e_exp, ev_time, ev_partner, ev_count)
+            _reposition(heap, where, ev_time, i)
+            continue
+        _advance(x, v, tl, i, t)
+        _advance(x, v, tl, j, t)
+        rr = 0.0
+        u = 0.0
+        for mu in range(d):
+            dx = x[i, mu] - x[j, mu]
+            dx -= box[mu] * np.rint(dx / box[mu])
+            r[mu] = dx
+            rr += dx * dx
+        dist = np.sqrt(rr)
+        for mu in range(d):
+            r[mu] /= dist
+            u += (v[i, mu] - v[j, mu]) * r[mu]
+        impulse = 0.5 * (s[i] + s[j]) * rate - u
+        if impulse < 0.0:
+            impulse = 0.0
+        for mu in range(d):
+            v[i, mu] += impulse * r[mu]
+            v[j, mu] -= impulse * r[mu]
+        virial += dist * impulse
+        counter[i] += 1
+        counter[j] += 1
+        collisions += 1
+        since_rescale += 1
+        if since_rescale >= rescale_every:
+            kt_now = _temperature(v)
+            kt_time += 0.5 * (kt_start + kt_now) * (t - t_rescale)
+            factor = np.sqrt(temperature / kt_now)
+            for k in range(n):
+                for mu in range(d):
+                    v[k, mu] *= factor
+            kt_start = temperature
+            t_rescale = t
+            since_rescale = 0
+            resync = True
+            continue
+        for k in (i, j):
+            _predict(k, t, x, v, tl, s, box, now, rate, start, neighbours, counter, xb, c_exp,
+                     e_exp, ev_time, ev_partner, ev_count)
+            _reposition(heap, where, ev_time, k)
+    kt_time += 0.5 * (kt_start + _temperature(v)) * (t - t_rescale)
+    for i in range(n):
+        _advance(x, v, tl, i, t)
+        for mu in range(d):
+            x[i, mu] -= box[mu] * np.floor(x[i, mu] / box[mu])
+            if x[i, mu] >= box[mu] or x[i, mu] < 0.0:
+                x[i, mu] = 0.0
+    return t, scale + rate * t, virial, kt_time, collisions, rebuilds
