@@ -1,0 +1,14 @@
+"""Random dense packings of spherocylinders: the force-biased algorithm of Bargiel (2008).
+
+- `SpherocylinderPacking` — the configuration type (centres, unit axes, diameters, cylinder
+  lengths, periodic box), with `phi` and `nematic_order()`.
+- `shaft_distance`, `min_distance_ratio`, `overlapping_pairs` — exact geometry (Vega–Lago).
+- `force_biased` — the generator; returns a `generators.result.GenerationResult`.
+- `write_xyz` — extended XYZ with orientations (OVITO); `render` — a PNG picture.
+"""
+
+from .geometry import min_distance_ratio, overlapping_pairs, shaft_distance
+from .packing import SpherocylinderPacking, min_particles_for_box, spherocylinder_volume
+
+__all__ = ["SpherocylinderPacking", "min_distance_ratio", "min_particles_for_box",
+           "overlapping_pairs", "shaft_distance", "spherocylinder_volume"]
