@@ -343,6 +343,8 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
         collisions += 1
         since_rescale += 1
         if since_rescale >= rescale_every:
+            for k in range(n):
+                _advance(x, v, tl, k, t)
             kt_now = _temperature(v)
             kt_time += 0.5 * (kt_start + kt_now) * (t - t_rescale)
             factor = np.sqrt(temperature / kt_now)
