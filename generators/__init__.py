@@ -5,7 +5,8 @@ Importing this package never imports an LP solver; the generators return `calipp
 
 from . import diameters
 from .initial import poisson
+from .fb import force_biased
 from .ls import lubachevsky_stillinger
 from .result import GenerationResult
 
-__all__ = ["GenerationResult", "diameters", "poisson", "lubachevsky_stillinger"]
+__all__ = ["GenerationResult", "diameters", "poisson", "force_biased", "lubachevsky_stillinger"]

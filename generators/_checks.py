@@ -58,3 +58,25 @@ def phi_estimate(d: int) -> float:
     if d == 2:
         return 0.84
     return (2.56 * d - 2.72) / 2.0**d
+
+
+def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray,
+                            box: np.ndarray) -> tuple[np.ndarray, float]:
+    """Scale all diameters down by the (tiny) relative overlap left by round-off, if any.
+
+    The check is an independent periodic KD-tree search (`calippso.neighbors.min_gap`).
+
+    Returns
+    -------
+    diameters : ndarray, shape (N,)
+        The diameters, possibly multiplied by (1 − correction).
+    correction : float
+        Relative shrink applied (0.0 if no pair overlapped).
+    """
+    from calippso.neighbors import min_gap
+
+    gap, _ = min_gap(positions, diameters, box)
+    if gap >= 0:
+        return diameters, 0.0
+    correction = -gap + 1e-15
+    return diameters * (1.0 - correction), correction

@@ -98,6 +98,7 @@ def verlet_lists(x: np.ndarray, box: np.ndarray, diameters: np.ndarray, skin: fl
         members[fill[cell[i]]] = i
         fill[cell[i]] += 1
     offsets = cell_offsets(n_cells)
+    inv = 1.0 / box
     # Pairs i < j within reach of each other.
     capacity = 16 * n
     pair_i = np.empty(capacity, dtype=np.int64)
@@ -115,7 +116,7 @@ def verlet_lists(x: np.ndarray, box: np.ndarray, diameters: np.ndarray, skin: fl
                 r2 = 0.0
                 for mu in range(d):
                     dx = x[i, mu] - x[j, mu]
-                    dx -= box[mu] * np.rint(dx / box[mu])
+                    dx -= box[mu] * np.rint(dx * inv[mu])
                     r2 += dx * dx
                 cut = 0.5 * (diameters[i] + diameters[j]) + skin
                 if r2 < cut * cut:

@@ -134,7 +134,7 @@ def _expiry_time(x, xb, v, i, c, e):
 
 
 @njit(cache=True)
-def _predict(i, t, x, v, tl, s, box, scale, rate, start, neighbours, counter, xb, c_exp, e_exp,
+def _predict(i, t, x, v, tl, s, box, inv, scale, rate, start, neighbours, counter, xb, c_exp, e_exp,
              ev_time, ev_partner, ev_count):
     """Next event of particle i (synchronised at time t); stored in the ev_* arrays."""
     d = x.shape[1]
@@ -149,7 +149,7 @@ def _predict(i, t, x, v, tl, s, box, scale, rate, start, neighbours, counter, xb
         vv = 0.0
         for mu in range(d):
             dx = x[i, mu] - x[j, mu] - v[j, mu] * dt
-            dx -= box[mu] * np.rint(dx / box[mu])
+            dx -= box[mu] * np.rint(dx * inv[mu])
             dv = v[i, mu] - v[j, mu]
             rr += dx * dx
             rv += dx * dv
@@ -270,6 +270,7 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
     start = np.zeros(n + 1, dtype=np.int64)
     neighbours = np.zeros(0, dtype=np.int64)
     r = np.empty(d)
+    inv = 1.0 / box
     while True:
         if rebuild or resync:
             for i in range(n):
@@ -290,7 +291,7 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
             now = scale + rate * t
             c_exp = 0.5 * (delta - s_max * (now - build_scale))
             for i in range(n):
-                _predict(i, t, x, v, tl, s, box, now, rate, start, neighbours, counter, xb,
+                _predict(i, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb,
                          c_exp, 0.5 * s_max * rate, ev_time, ev_partner, ev_count)
             _heapify(heap, where, ev_time)
             rebuild = False
@@ -314,7 +315,7 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
             continue
         if j == _NO_EVENT or ev_count[i] != counter[j]:
             _advance(x, v, tl, i, t)
-            _predict(i, t, x, v, tl, s, box, now, rate, start, neighbours, counter, xb, c_exp,
+            _predict(i, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb, c_exp,
                      e_exp, ev_time, ev_partner, ev_count)
             _reposition(heap, where, ev_time, i)
             continue
@@ -324,7 +325,7 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
         u = 0.0
         for mu in range(d):
             dx = x[i, mu] - x[j, mu]
-            dx -= box[mu] * np.rint(dx / box[mu])
+            dx -= box[mu] * np.rint(dx * inv[mu])
             r[mu] = dx
             rr += dx * dx
         dist = np.sqrt(rr)
@@ -357,7 +358,7 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
             resync = True
             continue
         for k in (i, j):
-            _predict(k, t, x, v, tl, s, box, now, rate, start, neighbours, counter, xb, c_exp,
+            _predict(k, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb, c_exp,
                      e_exp, ev_time, ev_partner, ev_count)
             _reposition(heap, where, ev_time, k)
     kt_time += 0.5 * (kt_start + _temperature(v)) * (t - t_rescale)

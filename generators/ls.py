@@ -9,7 +9,8 @@ import numpy as np
 from calippso.neighbors import min_gap
 from calippso.packing import Packing
 
-from ._checks import check_diameters, check_dimension, check_positive
+from ._checks import (check_diameters, check_dimension, check_positive,
+                      remove_roundoff_overlap)
 from ._progress import Progress
 from .edmd import run_window
 from .initial import poisson
@@ -105,16 +106,12 @@ class GrowingSpheres:
     def packing(self) -> tuple[Packing, float]:
         """The current configuration, checked for overlaps with an independent KD-tree search.
 
-        Round-off can leave a pair overlapping by ~1e-15 σ at very high pressure; then all
-        diameters are scaled down by that amount. Returns the packing and the relative
-        correction applied (0 if none).
+        Round-off can leave a pair overlapping by ~1e-15 σ (the last collision leaves a pair
+        exactly in contact); then all diameters are scaled down by that amount. Returns the
+        packing and the relative correction applied (0 if none).
         """
-        diameters = self.nominal * self.scale
-        gap, _ = min_gap(self.x, diameters, self.box)
-        correction = 0.0
-        if gap < 0:
-            correction = -gap + 1e-15
-            diameters = diameters * (1.0 - correction)
+        diameters, correction = remove_roundoff_overlap(self.x, self.nominal * self.scale,
+                                                        self.box)
         return Packing(self.x.copy(), diameters, self.box), correction
 
 
