@@ -182,7 +182,9 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
             bar.update(-np.log10(gap) if gap > 0 else 12.0, phi=f"{phi_inner:.5f}")
     finally:
         bar.close()
-    final = min(inner, outer)
+    # The inner scale (closest listed pair in contact) is the final size; the KD-tree check
+    # below scales down further in the rare case that an unlisted pair is closer.
+    final = inner
     # Back to the caller's diameters: lengths × mean / final.
     factor = mean / final
     sizes, correction = remove_roundoff_overlap(x * factor, s * mean, box * factor)
