@@ -175,8 +175,8 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
             outer, inner, done, finished = _fb_steps(
                 x, s, box, outer, phi_nominal, step_size, tau, min(50, max_steps - steps), skin)
             steps += done
-            phi_inner = phi_nominal * min(inner, outer) ** d
-            gap = phi_nominal * outer**d - phi_inner
+            phi_inner = phi_nominal * inner**d
+            gap = max(phi_nominal * outer**d - phi_inner, 0.0)
             j_exp = np.ceil(-np.log10(gap)) if gap > 0 else 0.0
             rows.append((steps, phi_inner, np.nan, 0.5 ** max(j_exp, 0.0) * tau))
             bar.update(-np.log10(gap) if gap > 0 else 12.0, phi=f"{phi_inner:.5f}")
