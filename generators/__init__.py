@@ -7,6 +7,8 @@ from . import diameters
 from .initial import poisson
 from .fb import force_biased
 from .ls import lubachevsky_stillinger
+from .mls import closest_jamming
 from .result import GenerationResult
 
-__all__ = ["GenerationResult", "diameters", "poisson", "force_biased", "lubachevsky_stillinger"]
+__all__ = ["GenerationResult", "diameters", "poisson", "force_biased", "lubachevsky_stillinger",
+           "closest_jamming"]

@@ -1,0 +1,130 @@
+"""Closest jammed configuration: the modified LS (MLS) protocol of Baranau & Tallarek (2014)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from calippso.packing import Packing
+
+from ._checks import check_positive
+from ._progress import Progress
+from .ls import GrowingSpheres
+from .result import GenerationResult, make_history
+
+__all__ = ["closest_jamming"]
+
+
+def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate: float = 1e-4,
+                    rate_decrease: float = 2.0, max_pressure: float = 1e12,
+                    temperature: float = 0.2, pressure_window: int = 20,
+                    max_equilibrations: int = 50, max_collisions: int | None = None,
+                    seed: int = 0, progress: bool = False, skin: float = 0.1) -> GenerationResult:
+    """Jam a packing while staying in its basin: fast growth first, ever slower near jamming.
+
+    The protocol, in event-driven MD (`GrowingSpheres`, as in LS):
+
+    1. grow at the current rate, measuring the reduced pressure over windows of
+       `pressure_window` collisions per particle, until p > `max_pressure`;
+    2. if the rate is already `final_rate`, the packing is jammed: stop;
+    3. otherwise stop growing and equilibrate (rate 0) window by window until p falls below
+       `max_pressure`, then divide the rate by `rate_decrease` (not below `final_rate`) and go
+       back to 1; if p stays above `max_pressure` for `max_equilibrations` windows the
+       packing is jammed: stop.
+
+    Parameters
+    ----------
+    packing : Packing
+        Start configuration (an overlapping one is first scaled down to no overlap).
+    initial_rate, final_rate : float
+        Growth rates dσ/dt (nominal diameter 1, mass 1, kT = `temperature`) at the start and
+        at the end.
+    rate_decrease : float
+        Factor (> 1) by which the rate is divided after each successful equilibration.
+    max_pressure : float
+        Reduced pressure p = βP/ρ taken as "jammed".
+    temperature : float
+        kT of the velocity rescaling.
+    pressure_window : int
+        Collisions per particle per pressure measurement.
+    max_equilibrations : int
+        Windows of zero-rate equilibration after which a packing still above `max_pressure` is
+        declared jammed.
+    max_collisions : int, optional
+        Safety limit on the number of collisions (default: none).
+    seed : int
+        Seed of the velocities.
+    progress : bool
+        Show a tqdm bar (log10 p); quiet by default.
+    skin : float
+        Initial Verlet skin in mean diameters.
+
+    Returns
+    -------
+    GenerationResult
+        `packing` in the start's box with grown diameters; history has one record per window
+        (rate 0 during equilibration); `extra`: ``rate`` (last growth rate),
+        ``equilibrations`` (windows at zero rate), ``rebuilds``, ``start_shrink``,
+        ``overlap_correction``, ``time``.
+
+    Raises
+    ------
+    ValueError
+        On non-positive rates, pressure or temperature, or final_rate > initial_rate.
+    """
+    wall = time.perf_counter()
+    if not isinstance(packing, Packing):
+        raise ValueError(f"packing must be a calippso.Packing, got {type(packing).__name__}")
+    rate = check_positive(initial_rate, "initial_rate")
+    final_rate = check_positive(final_rate, "final_rate")
+    if final_rate > rate:
+        raise ValueError(f"final_rate {final_rate:g} exceeds initial_rate {rate:g}")
+    if not rate_decrease > 1:
+        raise ValueError(f"rate_decrease must be > 1, got {rate_decrease!r}")
+    max_pressure = check_positive(max_pressure, "max_pressure")
+    state = GrowingSpheres(packing, check_positive(temperature, "temperature"), seed,
+                           check_positive(skin, "skin"))
+    limit = np.inf if max_collisions is None else int(max_collisions)
+    window = pressure_window * packing.n
+    rows = []
+    equilibrations = 0
+    status = ""
+    pressure = np.nan
+    bar = Progress(progress, np.log10(max_pressure), "MLS log10(p)")
+
+    def measure(growth: float) -> float:
+        p = state.window(int(min(window, limit - state.collisions)), growth)
+        rows.append((state.time, state.phi, p, growth))
+        bar.update(np.log10(max(p, 1.0)), phi=f"{rows[-1][1]:.6f}", rate=f"{rate:.3g}")
+        return p
+
+    try:
+        while not status:
+            pressure = measure(rate)
+            if state.collisions >= limit:
+                status = f"stopped at max_collisions = {limit}"
+            elif pressure > max_pressure and rate <= final_rate:
+                status = f"jammed: p = {pressure:.3g} > {max_pressure:.3g} at the final rate"
+            elif pressure > max_pressure:
+                for _ in range(max_equilibrations):
+                    pressure = measure(0.0)
+                    equilibrations += 1
+                    if pressure < max_pressure or state.collisions >= limit:
+                        break
+                if state.collisions >= limit:
+                    status = f"stopped at max_collisions = {limit}"
+                elif pressure >= max_pressure:
+                    status = (f"jammed: p = {pressure:.3g} stayed above {max_pressure:.3g} for "
+                              f"{max_equilibrations} equilibration windows")
+                else:
+                    rate = max(rate / rate_decrease, final_rate)
+    finally:
+        bar.close()
+    result_packing, correction = state.packing()
+    return GenerationResult(
+        packing=result_packing, reduced_pressure=float(pressure), collisions=state.collisions,
+        wall_time=time.perf_counter() - wall, history=make_history(rows), status=status,
+        extra={"rate": rate, "equilibrations": equilibrations, "rebuilds": state.rebuilds,
+               "start_shrink": state.start_shrink, "overlap_correction": correction,
+               "time": state.time})

@@ -1,0 +1,51 @@
+"""Closest-jamming (MLS) protocol: it stops jammed at the pressure threshold, without overlap,
+in the expected density range; rate schedule and errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import generators
+from calippso.neighbors import min_gap
+from generators import diameters as dist
+
+
+@pytest.fixture(scope="module")
+def jammed():
+    start = generators.poisson(dist.monodisperse(128), 3, phi=0.3, seed=4)
+    return start, generators.closest_jamming(start, max_pressure=1e9, final_rate=1e-3, seed=4)
+
+
+def test_mls_jams_without_overlap(jammed):
+    start, result = jammed
+    assert result.status.startswith("jammed")
+    assert result.reduced_pressure > 1e9
+    packing = result.packing
+    gap, overlapping = min_gap(packing.positions, packing.diameters, packing.box)
+    assert overlapping == 0 and gap >= -1e-12
+    assert 0.60 < packing.phi < 0.66  # N = 128: wide finite-size range around 0.63–0.64
+    np.testing.assert_array_equal(packing.box, start.box)
+
+
+def test_mls_rate_schedule(jammed):
+    _, result = jammed
+    rates = result.history["rate"]
+    growth = rates[rates > 0]
+    assert growth[0] == 10.0 and growth[-1] <= 1e-3 * 1.0000001
+    assert np.all(np.diff(growth) <= 0)  # the rate only decreases
+    assert np.any(rates == 0)  # equilibration windows happened
+    ratios = growth[:-1][np.diff(growth) < 0] / growth[1:][np.diff(growth) < 0]
+    assert np.all((ratios > 1.999) & (ratios < 2.001) | (growth[1:][np.diff(growth) < 0] == 1e-3))
+
+
+def test_mls_max_collisions_and_errors():
+    start = generators.poisson(dist.monodisperse(64), 3, phi=0.2, seed=0)
+    result = generators.closest_jamming(start, max_collisions=5000)
+    assert result.collisions == 5000 and "max_collisions" in result.status
+    with pytest.raises(ValueError, match="final_rate"):
+        generators.closest_jamming(start, initial_rate=1e-3, final_rate=1e-2)
+    with pytest.raises(ValueError, match="rate_decrease"):
+        generators.closest_jamming(start, rate_decrease=1.0)
+    with pytest.raises(ValueError, match="packing"):
+        generators.closest_jamming(np.ones(10))
