@@ -7,8 +7,12 @@
 - `write_xyz` — extended XYZ with orientations (OVITO); `render` — a PNG picture.
 """
 
+from .fb import force_biased
 from .geometry import min_distance_ratio, overlapping_pairs, shaft_distance
 from .packing import SpherocylinderPacking, min_particles_for_box, spherocylinder_volume
+from .render import render
+from .xyz import read_xyz, write_xyz
 
-__all__ = ["SpherocylinderPacking", "min_distance_ratio", "min_particles_for_box",
-           "overlapping_pairs", "shaft_distance", "spherocylinder_volume"]
+__all__ = ["SpherocylinderPacking", "force_biased", "min_distance_ratio",
+           "min_particles_for_box", "overlapping_pairs", "read_xyz", "render", "shaft_distance",
+           "spherocylinder_volume", "write_xyz"]

@@ -133,7 +133,12 @@ def pair_distance2(positions, axes, half_lengths, box, i, j):
 
 @numba.njit(cache=True)
 def _all_pairs_ratio(positions, axes, lengths, diameters, box, threshold):
-    """Brute force over all pairs: min δ_ij/σ_ij and the pairs with δ_ij/σ_ij < threshold."""
+    """Brute force over all pairs: min δ_ij/σ_ij and the pairs with δ_ij/σ_ij < threshold.
+
+    Pairs with δ_ij/σ_ij ≥ max(threshold, 2) are skipped early (the minimum is reported only if
+    below that horizon).
+    """
+    horizon = max(threshold, 2.0)
     n = positions.shape[0]
     half = 0.5 * lengths
     smallest = np.inf
@@ -141,7 +146,7 @@ def _all_pairs_ratio(positions, axes, lengths, diameters, box, threshold):
     for i in range(n - 1):
         for j in range(i + 1, n):
             sigma = 0.5 * (diameters[i] + diameters[j])
-            reach = half[i] + half[j] + sigma * threshold
+            reach = half[i] + half[j] + sigma * horizon
             rx = minimum_image_component(positions[j, 0] - positions[i, 0], box[0])
             ry = minimum_image_component(positions[j, 1] - positions[i, 1], box[1])
             rz = minimum_image_component(positions[j, 2] - positions[i, 2], box[2])
@@ -212,8 +217,8 @@ def min_distance_ratio(packing) -> float:
     Returns
     -------
     float
-        ≥ 1 when no two particles overlap (1 for touching ones); inf if no pair is within
-        reach (δ_ij < σ_ij is impossible for such pairs).
+        ≥ 1 when no two particles overlap (1 for touching ones); inf if no pair has
+        δ_ij < 2 σ_ij.
     """
     smallest, _ = _all_pairs_ratio(*_arrays(packing), 1.0)
     return float(smallest)
