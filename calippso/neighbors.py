@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 
 from .packing import minimum_image, wrap
 
-__all__ = ["Pairs", "pairs_within", "close_pairs", "min_gap"]
+__all__ = ["Pairs", "NeighborSearch", "pairs_within", "close_pairs", "min_gap"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,59 @@ class Pairs:
                      self.sigma[mask])
 
 
+class NeighborSearch:
+    """A periodic KD-tree over one configuration, for repeated pair queries.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres (wrapped into the box on construction).
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    """
+
+    def __init__(self, positions: np.ndarray, diameters: np.ndarray, box: np.ndarray):
+        self.box = np.asarray(box, dtype=np.float64)
+        self.positions = wrap(np.asarray(positions, dtype=np.float64), self.box)
+        self.diameters = np.asarray(diameters, dtype=np.float64)
+        self.d = self.positions.shape[1]
+        self._tree = cKDTree(self.positions, boxsize=self.box)
+        self._nearest: tuple[np.ndarray, np.ndarray] | None = None
+
+    def pairs_within(self, cutoff: float) -> Pairs:
+        """All pairs whose centre distance is at most `cutoff` (below half the smallest side).
+
+        Returns
+        -------
+        Pairs
+            Sorted by (i, j), with i < j.
+        """
+        if not cutoff < 0.5 * float(np.min(self.box)):
+            raise ValueError(
+                f"pair cutoff {cutoff:g} is not below half the smallest box side "
+                f"{np.min(self.box):g}"
+            )
+        ij = self._tree.query_pairs(cutoff, output_type="ndarray").astype(np.int64, copy=False)
+        if ij.shape[0]:
+            ij.sort(axis=1)
+            ij = ij[np.lexsort((ij[:, 1], ij[:, 0]))]
+        return self.pairs_of(ij[:, 0], ij[:, 1])
+
+    def pairs_of(self, i: np.ndarray, j: np.ndarray) -> Pairs:
+        """Geometry of given pairs (index arrays of equal length, i < j)."""
+        vectors = minimum_image(self.positions[i] - self.positions[j], self.box)
+        distances = np.sqrt(np.einsum("md,md->m", vectors, vectors))
+        sigma = 0.5 * (self.diameters[i] + self.diameters[j])
+        return Pairs(i, j, vectors, distances, sigma)
+
+    def nearest_neighbours(self) -> tuple[np.ndarray, np.ndarray]:
+        """Distance to, and index of, every particle's nearest neighbour; shapes (N,), (N,)."""
+        if self._nearest is None:
+            distances, indices = self._tree.query(self.positions, k=2)
+            self._nearest = (distances[:, 1], indices[:, 1])
+        return self._nearest
+
+
 def pairs_within(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                  cutoff: float) -> Pairs:
     """All pairs whose centre-to-centre distance is at most `cutoff`.
@@ -69,21 +122,7 @@ def pairs_within(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
     Pairs
         Sorted by (i, j).
     """
-    if not cutoff < 0.5 * float(np.min(box)):
-        raise ValueError(
-            f"pair cutoff {cutoff:g} is not below half the smallest box side {np.min(box):g}"
-        )
-    inside = wrap(np.asarray(positions, dtype=np.float64), box)
-    tree = cKDTree(inside, boxsize=box)
-    ij = tree.query_pairs(cutoff, output_type="ndarray").astype(np.int64, copy=False)
-    if ij.shape[0]:
-        ij.sort(axis=1)
-        ij = ij[np.lexsort((ij[:, 1], ij[:, 0]))]
-    i, j = ij[:, 0], ij[:, 1]
-    vectors = minimum_image(inside[i] - inside[j], box)
-    distances = np.sqrt(np.einsum("md,md->m", vectors, vectors))
-    sigma = 0.5 * (diameters[i] + diameters[j])
-    return Pairs(i, j, vectors, distances, sigma)
+    return NeighborSearch(positions, diameters, box).pairs_within(cutoff)
 
 
 def close_pairs(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -109,12 +148,11 @@ def min_gap(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray) -> tu
     Returns
     -------
     (float, int)
-        The smallest gap among pairs within contact range (0.0 if no pair is that close,
-        in which case the packing is certainly overlap-free) and the number of overlapping
-        pairs (h < 0).
+        The smallest gap among pairs within contact range (+inf if no pair is that close)
+        and the number of overlapping pairs (h < 0).
     """
     pairs = close_pairs(positions, diameters, box, 0.0)
     if len(pairs) == 0:
-        return 0.0, 0
+        return float("inf"), 0
     gaps = pairs.gaps
     return float(gaps.min()), int(np.count_nonzero(gaps < 0))

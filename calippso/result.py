@@ -136,7 +136,9 @@ class JammingResult:
     @property
     def isostaticity_gap(self) -> int:
         """N_c − d (N_s − 1) − 1: zero for an isostatic packing."""
-        return self.n_contacts - self.d * (self.n_stable - 1) - 1
+        from .contacts import isostaticity_gap
+
+        return isostaticity_gap(self.n_contacts, self.n_stable, self.d)
 
     @property
     def isostatic(self) -> bool:

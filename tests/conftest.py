@@ -15,3 +15,8 @@ def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
         pytest.skip("../shared/data is not beside this checkout")
     return SHARED_DATA
+
+
+import sys
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/configurations.py

@@ -1,0 +1,130 @@
+"""From LP duals to the contact network: contacts, forces, rattlers, isostaticity, balance."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["contact_mask", "remove_rattlers", "net_forces", "force_balance",
+           "isostaticity_gap"]
+
+
+def contact_mask(duals: np.ndarray, relative_threshold: float) -> np.ndarray:
+    """Rows whose dual exceeds `relative_threshold` × the largest dual, shape (M,), bool."""
+    if duals.size == 0:
+        return np.zeros(0, dtype=bool)
+    largest = float(duals.max())
+    if largest <= 0:
+        return np.zeros(duals.shape, dtype=bool)
+    return duals > relative_threshold * largest
+
+
+def remove_rattlers(n: int, d: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Recursively remove particles with fewer than d + 1 contacts.
+
+    Removing a rattler lowers its neighbours' counts, which may make them rattlers too; the
+    removal repeats until every remaining particle has at least d + 1 contacts.
+
+    Parameters
+    ----------
+    n, d : int
+        Number of particles and dimension.
+    i, j : ndarray, shape (M,)
+        Contact pairs.
+
+    Returns
+    -------
+    rattlers : ndarray, shape (N,), bool
+    kept : ndarray, shape (M,), bool
+        Contacts between two stable particles.
+    """
+    rattlers = np.zeros(n, dtype=bool)
+    kept = np.ones(i.shape[0], dtype=bool)
+    while True:
+        counts = np.bincount(i[kept], minlength=n) + np.bincount(j[kept], minlength=n)
+        new = (counts < d + 1) & ~rattlers
+        if not new.any():
+            return rattlers, kept
+        rattlers |= new
+        kept &= ~(rattlers[i] | rattlers[j])
+
+
+def net_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
+               forces: np.ndarray) -> np.ndarray:
+    """Net contact force on every particle, shape (N, d).
+
+    The force on i from j is f_ij n_ij with n_ij the unit vector from j to i (repulsion); j
+    receives the opposite.
+    """
+    d = normals.shape[1]
+    vectors = forces[:, None] * normals
+    total = np.zeros((n, d))
+    for axis in range(d):
+        total[:, axis] = (np.bincount(i, vectors[:, axis], minlength=n)
+                          - np.bincount(j, vectors[:, axis], minlength=n))
+    return total
+
+
+def force_balance(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
+                  forces: np.ndarray, stable: np.ndarray) -> float:
+    """max over stable particles of |Σ_j f_ij n_ij| / mean force (0 when there is no force)."""
+    if forces.size == 0 or not stable.any():
+        return 0.0
+    mean = float(forces.mean())
+    if mean <= 0:
+        return 0.0
+    total = net_forces(n, i, j, normals, forces)[stable]
+    return float(np.sqrt(np.einsum("nd,nd->n", total, total)).max() / mean)
+
+
+def isostaticity_gap(n_contacts: int, n_stable: int, d: int) -> int:
+    """N_c − d (N_s − 1) − 1: zero for an isostatic packing (N_c itself when nothing is stable)."""
+    if n_stable == 0:
+        return n_contacts
+    return n_contacts - d * (n_stable - 1) - 1
+
+
+def polish_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
+                  weights: np.ndarray, forces: np.ndarray) -> np.ndarray:
+    """Refine contact forces so that every particle is in balance to round-off.
+
+    Solves, by sparse least squares started from `forces`, the equilibrium equations
+    Σ_j f_ij n_ij = 0 for every particle together with the normalisation Σ weights·f = 1.
+    For an isostatic network the solution is the unique self-stress; interior-point duals
+    (balanced only to the solver tolerance) converge to it in a few iterations.
+
+    Parameters
+    ----------
+    n : int
+        Number of particles.
+    i, j : ndarray, shape (M,)
+        Contacts.
+    normals : ndarray, shape (M, d)
+        Unit vectors n_ij from j to i.
+    weights : ndarray, shape (M,)
+        Coefficients of the normalisation (2σ_ij²/(2|r_ij|) for f = μ/2).
+    forces : ndarray, shape (M,)
+        Starting forces (e.g. the duals / 2).
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        Polished forces, scaled so that weights·f = 1.
+    """
+    from scipy.sparse import csr_matrix, vstack
+    from scipy.sparse.linalg import lsqr
+
+    m, d = normals.shape
+    contact = np.arange(m)
+    rows = np.concatenate([(i[:, None] * d + np.arange(d)).ravel(),
+                           (j[:, None] * d + np.arange(d)).ravel()])
+    cols = np.concatenate([np.repeat(contact, d), np.repeat(contact, d)])
+    values = np.concatenate([normals.ravel(), -normals.ravel()])
+    equilibrium = csr_matrix((values, (rows, cols)), shape=(n * d, m))
+    system = vstack([equilibrium, csr_matrix(weights[None, :])]).tocsr()
+    target = np.zeros(n * d + 1)
+    target[-1] = 1.0
+    start = forces / float(weights @ forces)
+    correction = lsqr(system, target - system @ start, atol=1e-16, btol=1e-16,
+                      iter_lim=20 * m)[0]
+    polished = start + correction
+    return polished / float(weights @ polished)

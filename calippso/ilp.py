@@ -1,0 +1,450 @@
+"""The CALiPPSO loop: iterate linear programs until the packing is jammed.
+
+Each iteration builds the linearised problem of `calippso.lp` for the current configuration,
+solves it, moves the particles by s* and inflates every diameter by √Γ*. The bound on the
+displacements adapts to the previous step (`next_step_bound`): it grows when a stable
+particle was held back by it and shrinks with the displacements as the packing converges,
+which keeps the LP small and never lets the bound stall the approach to jamming.
+
+At the end, contacts and forces come from the duals of an LP solved at the final positions
+(a clean-up LP with rattlers frozen, when the duals of the last step do not balance to
+`balance_tolerance` at the updated positions).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .contacts import (contact_mask, force_balance, isostaticity_gap, polish_forces,
+                       remove_rattlers)
+from .errors import JammingError, SolverError
+from .lp import LinearProgram, build_lp, largest_safe_step, select_pairs
+from .neighbors import NeighborSearch, Pairs
+from .packing import Packing, wrap
+from .result import JammingResult, history_from_records
+from .settings import JamSettings
+from .solvers import LPSolution, get_solver
+
+__all__ = ["jam", "initial_step_bound", "next_step_bound"]
+
+#: Bound on displacements in the final clean-up LP (mean diameters); at a jammed state the
+#: solution is ~0 and the bound is inactive.
+CLEANUP_STEP = 1e-3
+
+
+def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: float = 1e-12,
+        tol_s: float = 1e-9, max_iters: int = 1000, verbose: bool = False,
+        callback: Callable[[dict], bool | None] | None = None, **options) -> JammingResult:
+    """Bring a configuration of hard (hyper)spheres to its jamming point with CALiPPSO.
+
+    Parameters
+    ----------
+    packing : Packing or array_like, shape (N, d)
+        The configuration, or its positions (then pass `diameters` and `box` too).
+    diameters : array_like, shape (N,), optional
+        Diameters, when `packing` is an array of positions.
+    box : array_like, shape (d,) or float, optional
+        Box side lengths, when `packing` is an array of positions.
+    solver : {"highs", "clarabel", "cvxpy"}
+        LP backend. "highs" (interior point + crossover) gives vertex solutions whose duals
+        identify contacts exactly; the others are interior-point solvers at tight tolerances.
+    tol_gamma : float
+        Converged when √Γ − 1 < tol_gamma ...
+    tol_s : float
+        ... and max |s_iμ| over non-rattlers < tol_s, in units of the mean diameter.
+    max_iters : int
+        Largest number of LPs in the main loop.
+    verbose : bool
+        Print one line per LP.
+    callback : callable, optional
+        Called after every LP with a dict (the history record plus "iteration" and "packing");
+        returning True stops the run (the result then has ``converged=False``).
+    **options
+        Further `JamSettings` fields (e.g. ``initial_step``, ``max_step``,
+        ``contact_threshold``, ``feasibility_tolerance``).
+
+    Returns
+    -------
+    JammingResult
+
+    Raises
+    ------
+    ValueError
+        Bad input: wrong shapes, NaN, non-positive sizes, a particle wider than half the box,
+        or overlapping particles (beyond round-off, `overlap_tolerance`).
+    JammingError
+        Every backend failed on an LP; the exception keeps the last valid configuration.
+    """
+    settings = JamSettings.from_options(solver=solver, tol_gamma=tol_gamma, tol_s=tol_s,
+                                        max_iters=max_iters, verbose=verbose, **options)
+    return _Jammer(_as_packing(packing, diameters, box), settings, callback).run()
+
+
+def _as_packing(packing, diameters, box) -> Packing:
+    if isinstance(packing, Packing):
+        if diameters is not None or box is not None:
+            raise TypeError("pass either a Packing, or positions with diameters and box")
+        return packing
+    if diameters is None or box is None:
+        raise TypeError("jam(positions, diameters, box): diameters and box are required")
+    return Packing(packing, diameters, box)
+
+
+def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
+    """First bound on displacements: the median nearest-neighbour surface gap, clipped.
+
+    Parameters
+    ----------
+    search : NeighborSearch
+        The input configuration (mean diameter 1).
+    settings : JamSettings
+        `initial_step` overrides the rule; the result lies in [min_step, max_step].
+    """
+    if settings.initial_step is not None:
+        step = settings.initial_step
+    else:
+        distances, neighbours = search.nearest_neighbours()
+        sigma = 0.5 * (search.diameters + search.diameters[neighbours])
+        step = float(np.median(distances - sigma))
+    return float(np.clip(step, settings.min_step, settings.max_step))
+
+
+def next_step_bound(step: float, taken: "_Step", settings: JamSettings) -> float:
+    """Adapt the displacement bound to the step just taken.
+
+    - A stable particle held at the bound means the bound limited the step: multiply it by
+      `step_growth`.
+    - Far from jamming (fewer than half the particles stable) the contact network is a set of
+      small clusters that all count as rattlers; if any particle with a contact sat at the
+      bound, grow the bound too, otherwise keep it.
+    - Otherwise the next bound is `step_margin` × the largest displacement of a stable
+      particle, so that it follows the shrinking steps of the final approach (and the LP
+      keeps fewer rows).
+    """
+    def at_bound(displacement: float) -> bool:
+        return displacement >= step * (1.0 - 1e-6)
+
+    sparse_network = taken.stable_fraction < 0.5
+    if at_bound(taken.max_displacement) or (sparse_network and at_bound(taken.max_contacting)):
+        proposed = step * settings.step_growth
+    elif sparse_network:
+        proposed = step
+    else:
+        proposed = settings.step_margin * taken.max_displacement
+    return float(np.clip(proposed, settings.min_step, settings.max_step))
+
+
+@dataclass(eq=False)
+class _Step:
+    """One solved LP and what its duals say."""
+
+    lp: LinearProgram
+    solution: LPSolution
+    contact_rows: np.ndarray       # rows that are contacts between stable particles
+    rattlers: np.ndarray           # (N,) bool
+    forces: np.ndarray             # (len(contact_rows),) f = μ/2, not normalised
+    balance: float                 # at the LP's own geometry
+    max_displacement: float        # over non-rattlers, mean diameters
+    max_contacting: float          # over particles with at least one contact (before removal)
+    stable_fraction: float         # fraction of particles that are not rattlers
+
+    @property
+    def displacements(self) -> np.ndarray:
+        return self.solution.x[:-1].reshape(self.lp.n, self.lp.d)
+
+    @property
+    def n_contacts(self) -> int:
+        return int(self.contact_rows.shape[0])
+
+    @property
+    def normalization(self) -> float:
+        return float(self.solution.duals @ self.lp.gamma_coefficients)
+
+
+def _solution_problem(lp: LinearProgram, solution: LPSolution) -> str | None:
+    """Why a backend's answer cannot be used, or None when it passes the checks."""
+    if not solution.optimal:
+        return f"status '{solution.status}'"
+    if solution.x.shape[0] != lp.n_cols or solution.duals.shape[0] != lp.n_rows:
+        return "solution of the wrong size"
+    if not (np.all(np.isfinite(solution.x)) and np.all(np.isfinite(solution.duals))):
+        return "non-finite values in the solution"
+    violation = float(np.min(lp.matrix @ solution.x - lp.row_lower, initial=0.0))
+    if violation < -1e-7:
+        return f"rows violated by {-violation:.2e}"
+    normalization = float(solution.duals @ lp.gamma_coefficients)
+    if abs(normalization - 1.0) > 1e-6:
+        return f"dual normalisation sum(lambda sigma^2) = {normalization:.3e}, not 1"
+    return None
+
+
+class _Jammer:
+    """State of one `jam` call (internal units: mean input diameter = 1)."""
+
+    def __init__(self, packing: Packing, settings: JamSettings, callback):
+        self.settings = settings
+        self.callback = callback
+        self.start = time.perf_counter()
+        self.scale = packing.mean_diameter
+        self.n, self.d = packing.n, packing.d
+        self.box = packing.box / self.scale
+        self.positions = wrap(packing.positions / self.scale, self.box)
+        self.diameters = packing.diameters / self.scale
+        self.fixed = np.zeros(self.n, dtype=bool)
+        if settings.pin:
+            self.fixed[0] = True
+        self.records: list[dict] = []
+        self.notes: list[str] = []
+        self.solver_name = settings.solver
+        self.search = NeighborSearch(self.positions, self.diameters, self.box)
+        self._check_input_overlaps()
+        self.step = initial_step_bound(self.search, settings)
+
+    # ----------------------------------------------------------------- helpers
+    def packing(self) -> Packing:
+        """The current configuration in the caller's units."""
+        return Packing(self.positions * self.scale, self.diameters * self.scale,
+                       self.box * self.scale)
+
+    def _fail(self, message: str) -> JammingError:
+        return JammingError(message, packing=self.packing(),
+                            history=history_from_records(self.records))
+
+    def _check_input_overlaps(self) -> None:
+        close = self.search.pairs_within(float(self.diameters.max()))
+        gaps = close.gaps
+        if gaps.size and gaps.min() < -self.settings.overlap_tolerance:
+            k = int(np.argmin(gaps))
+            count = int(np.count_nonzero(gaps < -self.settings.overlap_tolerance))
+            raise ValueError(
+                f"overlapping particles in the input: {count} pair(s) overlap, the worst is "
+                f"({close.i[k]}, {close.j[k]}) with gap h = |r|/sigma - 1 = {gaps[k]:.3e} "
+                f"(accepted as round-off: h > -{self.settings.overlap_tolerance:g})")
+
+    def _pairs(self, search: NeighborSearch, step: float, stable: np.ndarray | None,
+               forced: np.ndarray) -> Pairs:
+        pairs = select_pairs(search, step)
+        if forced.shape[0]:
+            keys = pairs.i * self.n + pairs.j
+            extra = forced[~np.isin(forced[:, 0] * self.n + forced[:, 1], keys)]
+            if extra.shape[0]:
+                more = search.pairs_of(extra[:, 0], extra[:, 1])
+                pairs = Pairs(*(np.concatenate([a, b]) for a, b in zip(
+                    (pairs.i, pairs.j, pairs.vectors, pairs.distances, pairs.sigma),
+                    (more.i, more.j, more.vectors, more.distances, more.sigma))))
+        if stable is not None:
+            pairs = pairs.subset(stable[pairs.i] & stable[pairs.j])
+        return pairs
+
+    def _solve(self, search: NeighborSearch, step: float, fixed: np.ndarray,
+               stable: np.ndarray | None = None,
+               forced: np.ndarray = np.zeros((0, 2), dtype=np.int64)) -> _Step:
+        """Build and solve one LP; on failure retry with a smaller bound, then other backends."""
+        attempts = [(self.solver_name, step), (self.solver_name, step / 4)]
+        attempts += [(name, step / 4) for name in self.settings.fallback_solvers
+                     if name != self.solver_name]
+        failures = []
+        for name, bound in attempts:
+            lp = build_lp(self._pairs(search, bound, stable, forced), self.n, self.d, bound, fixed)
+            try:
+                solution = get_solver(name)(lp, self.settings)
+            except (SolverError, ValueError, RuntimeError, MemoryError) as error:
+                failures.append(f"{name} (bound {bound:.1e}): {type(error).__name__}: {error}")
+                continue
+            problem = _solution_problem(lp, solution)
+            if problem is None:
+                if (name, bound) != attempts[0]:
+                    self.notes.append(f"LP {len(self.records) + 1} needed a retry ({name}, "
+                                      f"bound {bound:.1e}) after: {'; '.join(failures)}")
+                return self._analyse(lp, solution, stable)
+            failures.append(f"{name} (bound {bound:.1e}): {problem}")
+        raise self._fail(f"every LP backend failed at LP {len(self.records) + 1}: "
+                         + "; ".join(failures))
+
+    def _analyse(self, lp: LinearProgram, solution: LPSolution,
+                 stable: np.ndarray | None) -> _Step:
+        threshold = (self.settings.contact_threshold if solution.vertex
+                     else self.settings.interior_contact_threshold)
+        rows = np.flatnonzero(contact_mask(solution.duals, threshold))
+        pairs = lp.pairs
+        contacting = np.zeros(self.n, dtype=bool)
+        contacting[pairs.i[rows]] = contacting[pairs.j[rows]] = True
+        rattlers, kept = remove_rattlers(self.n, self.d, pairs.i[rows], pairs.j[rows])
+        if stable is not None:
+            rattlers |= ~stable
+        rows = rows[kept]
+        forces = 0.5 * solution.duals[rows]
+        normals = pairs.vectors[rows] / pairs.distances[rows, None]
+        balance = force_balance(self.n, pairs.i[rows], pairs.j[rows], normals, forces, ~rattlers)
+        s = solution.x[:-1].reshape(self.n, self.d)
+        free = lp.col_upper[:-1].reshape(self.n, self.d)[:, 0] > 0
+        moving = ~rattlers & free
+        max_displacement = float(np.abs(s[moving]).max(initial=0.0))
+        max_contacting = float(np.abs(s[contacting & free]).max(initial=0.0))
+        return _Step(lp, solution, rows, rattlers, forces, balance, max_displacement,
+                     max_contacting, float(np.count_nonzero(~rattlers)) / self.n)
+
+    def _record(self, step: _Step, min_gap: float) -> dict:
+        record = {
+            "wall_time": time.perf_counter() - self.start,
+            "solver_time": step.solution.seconds,
+            "sqrt_gamma_minus_1": float(np.sqrt(1.0 + step.solution.gamma) - 1.0),
+            "max_displacement": step.max_displacement,
+            "rows": step.lp.n_rows,
+            "step_bound": step.lp.step_bound,
+            "n_contacts": step.n_contacts,
+            "isostaticity_gap": isostaticity_gap(step.n_contacts,
+                                                 int(self.n - step.rattlers.sum()), self.d),
+            "force_balance": step.balance,
+            "min_gap": min_gap,
+            "phi": self.packing().phi,
+        }
+        self.records.append(record)
+        if self.settings.verbose:
+            self._print(record)
+        return record
+
+    def _print(self, record: dict) -> None:
+        if len(self.records) == 1:
+            print(f"{'LP':>4} {'rows':>8} {'sqrtG-1':>9} {'max|s|':>9} {'bound':>8} {'Nc':>7} "
+                  f"{'iso':>5} {'balance':>8} {'min gap':>9} {'phi':>12} {'LP s':>7} {'total s':>8}")
+        print(f"{len(self.records):4d} {record['rows']:8d} {record['sqrt_gamma_minus_1']:9.2e} "
+              f"{record['max_displacement']:9.2e} {record['step_bound']:8.1e} "
+              f"{record['n_contacts']:7d} {record['isostaticity_gap']:5d} "
+              f"{record['force_balance']:8.1e} {record['min_gap']:9.2e} {record['phi']:12.9f} "
+              f"{record['solver_time']:7.2f} {record['wall_time']:8.2f}", flush=True)
+
+    # ----------------------------------------------------------------- main loop
+    def run(self) -> JammingResult:
+        settings = self.settings
+        forced = np.zeros((0, 2), dtype=np.int64)
+        converged = False
+        stopped = False
+        step_result: _Step | None = None
+        while len(self.records) < settings.max_iters:
+            bound = largest_safe_step(self.search, self.step)
+            if bound < settings.min_step * 1e-3:
+                raise self._fail("box too small: even a vanishing step would need pairs "
+                                 "beyond half the box side")
+            step_result = self._solve(self.search, bound, self.fixed, forced=forced)
+            s, gamma = step_result.displacements, step_result.solution.gamma
+            positions = wrap(self.positions + s, self.box)
+            diameters = self.diameters * np.sqrt(1.0 + gamma)
+            search = NeighborSearch(positions, diameters, self.box)
+            close = search.pairs_within(float(diameters.max()) * (1.0 + 1e-6))
+            overlapping = close.gaps < 0
+            keys = step_result.lp.pairs.i * self.n + step_result.lp.pairs.j
+            outside = overlapping & ~np.isin(close.i * self.n + close.j, keys)
+            if outside.any():
+                # A pair left out of the LP overlaps (round-off at the edge of the safe
+                # selection): keep it from now on and solve this LP again.
+                new = np.column_stack([close.i[outside], close.j[outside]])
+                forced = np.unique(np.concatenate([forced, new]), axis=0)
+                self.notes.append(f"{int(outside.sum())} pair(s) outside the LP overlapped "
+                                  f"after LP {len(self.records) + 1}; re-solved with them")
+                continue
+            self.positions, self.diameters, self.search = positions, diameters, search
+            min_gap = float(close.gaps.min()) if len(close) else float("inf")
+            record = self._record(step_result, min_gap)
+            sqrt_gamma_minus_1 = record["sqrt_gamma_minus_1"]
+            converged = (sqrt_gamma_minus_1 < settings.tol_gamma
+                         and step_result.max_displacement < settings.tol_s
+                         and step_result.max_displacement < 0.5 * bound)
+            if self.callback is not None and self.callback(
+                    {**record, "iteration": len(self.records), "packing": self.packing()}):
+                stopped = True
+                break
+            if converged:
+                break
+            self.step = next_step_bound(bound, step_result, settings)
+        return self._finish(step_result, converged, stopped)
+
+    # ----------------------------------------------------------------- final forces
+    def _finish(self, last: _Step, converged: bool, stopped: bool) -> JammingResult:
+        settings = self.settings
+        pairs = last.lp.pairs
+        rows = last.contact_rows
+        current = self.search.pairs_of(pairs.i[rows], pairs.j[rows])
+        balance = force_balance(self.n, current.i, current.j,
+                                current.vectors / current.distances[:, None], last.forces,
+                                ~last.rattlers)
+        final = last
+        if balance > settings.balance_tolerance:
+            stable = ~last.rattlers
+            fixed = last.rattlers.copy()
+            if stable.any():
+                fixed[np.flatnonzero(stable)[0]] = True
+            final = self._solve(self.search, CLEANUP_STEP, fixed, stable=stable)
+            self._record(final, self.records[-1]["min_gap"])
+            balance = final.balance
+            if final.max_displacement > 0.5 * CLEANUP_STEP:
+                self.notes.append("the force clean-up LP found a floppy motion: the packing "
+                                  "is not rigid")
+        fpairs = final.lp.pairs
+        rows = final.contact_rows
+        forces = final.forces
+        if balance > settings.balance_tolerance and rows.size:
+            forces, balance = self._polished(final, forces, balance)
+        contacts = np.column_stack([fpairs.i[rows], fpairs.j[rows]]).astype(np.int64)
+        order = np.lexsort((contacts[:, 1], contacts[:, 0]))
+        forces = forces[order]
+        mean_force = forces.mean() if forces.size else 1.0
+        self._remove_roundoff_overlaps()
+        packing = self.packing()
+        n_stable = int(self.n - final.rattlers.sum())
+        gap = isostaticity_gap(rows.shape[0], n_stable, self.d)
+        status = self._status(converged, stopped, gap)
+        return JammingResult(
+            packing=packing, contacts=contacts[order], forces=forces / mean_force,
+            rattlers=final.rattlers.copy(), converged=converged, status=status,
+            iterations=len(self.records), history=history_from_records(self.records),
+            wall_time=time.perf_counter() - self.start, force_balance=balance,
+            dual_normalization=final.normalization, solver=final.solution.solver)
+
+    def _polished(self, final: _Step, forces: np.ndarray, balance: float) -> tuple[np.ndarray, float]:
+        """Forces refined by least squares on the equilibrium equations, if that helps."""
+        pairs, rows = final.lp.pairs, final.contact_rows
+        geometry = self.search.pairs_of(pairs.i[rows], pairs.j[rows])
+        normals = geometry.vectors / geometry.distances[:, None]
+        weights = 2.0 * geometry.sigma**2 / (2.0 * geometry.distances)
+        polished = polish_forces(self.n, geometry.i, geometry.j, normals, weights, forces)
+        new_balance = force_balance(self.n, geometry.i, geometry.j, normals, polished,
+                                    ~final.rattlers)
+        if np.all(polished > 0) and new_balance < balance:
+            self.notes.append(f"forces polished by least squares (balance {balance:.1e} -> "
+                              f"{new_balance:.1e})")
+            return polished, new_balance
+        return forces, balance
+
+    def _remove_roundoff_overlaps(self) -> None:
+        close = self.search.pairs_within(float(self.diameters.max()) * (1.0 + 1e-6))
+        if not len(close):
+            return
+        worst = float(close.gaps.min())
+        if worst < 0:
+            factor = (1.0 + worst) * (1.0 - 4 * np.finfo(float).eps)
+            self.diameters = self.diameters * factor
+            self.search = NeighborSearch(self.positions, self.diameters, self.box)
+            self.notes.append(f"diameters scaled by 1 - {1 - factor:.1e} to remove round-off "
+                              f"overlaps (worst gap {worst:.1e})")
+            after = self.search.pairs_within(float(self.diameters.max()) * (1.0 + 1e-6)).gaps
+            self.records[-1]["min_gap"] = float(after.min()) if after.size else float("inf")
+
+    def _status(self, converged: bool, stopped: bool, gap: int) -> str:
+        last = self.records[-1]
+        if converged:
+            head = f"Jammed: converged after {len(self.records)} LPs"
+        elif stopped:
+            head = f"Stopped by the callback after {len(self.records)} LPs"
+        else:
+            head = f"Not converged after {len(self.records)} LPs (max_iters)"
+        tail = "isostatic" if gap == 0 else f"isostaticity gap {gap:+d}"
+        sentence = (f"{head} (sqrt(Gamma)-1 = {last['sqrt_gamma_minus_1']:.1e}, "
+                    f"max|s| = {last['max_displacement']:.1e}); {tail}.")
+        if self.notes:
+            sentence += " Notes: " + "; ".join(self.notes) + "."
+        return sentence

@@ -1,0 +1,105 @@
+"""`JamSettings`: every tolerance and parameter of `calippso.jam`, with documented defaults.
+
+All lengths are in units of the mean diameter of the input packing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+__all__ = ["JamSettings", "SOLVERS"]
+
+#: Names accepted by ``jam(..., solver=...)``.
+SOLVERS = ("highs", "clarabel", "cvxpy")
+
+
+@dataclass(frozen=True)
+class JamSettings:
+    """Parameters of the CALiPPSO loop.
+
+    Attributes
+    ----------
+    solver : str
+        LP backend: "highs" (interior point + crossover, default), "clarabel" or "cvxpy".
+    fallback_solvers : tuple of str
+        Backends tried, in order, when the chosen one fails twice on the same LP.
+    tol_gamma : float
+        Convergence when √Γ − 1 < tol_gamma.
+    tol_s : float
+        ... and max |s_iμ| over non-rattlers < tol_s (mean diameters).
+    max_iters : int
+        Largest number of LPs in the main loop.
+    initial_step : float or None
+        First bound on each displacement component. None: chosen from the nearest-neighbour
+        gaps of the input (`ilp.initial_step_bound`).
+    max_step : float
+        Largest bound on a displacement component.
+    min_step : float
+        Smallest bound; kept well above `tol_s` so that a converged step is never a clipped one.
+    step_growth : float
+        Factor applied to the bound when a non-rattler's displacement reached it.
+    step_margin : float
+        Otherwise the next bound is `step_margin` × the largest non-rattler displacement.
+    contact_threshold : float
+        A pair is a contact when its dual exceeds this fraction of the largest dual (HiGHS).
+    interior_contact_threshold : float
+        The same for interior-point solutions without crossover (Clarabel, cvxpy).
+    overlap_tolerance : float
+        Input overlaps up to this relative gap (h > −overlap_tolerance) are round-off and
+        accepted; larger ones raise ValueError.
+    feasibility_tolerance : float
+        Primal and dual feasibility tolerances passed to the solver (rows are in mean diameters).
+    balance_tolerance : float
+        A final force clean-up LP is solved when the force balance is worse than this.
+    pin : bool
+        Fix one particle's displacement to remove the d translational zero modes.
+    verbose : bool
+        Print one line per LP.
+    """
+
+    solver: str = "highs"
+    fallback_solvers: tuple[str, ...] = ("highs", "clarabel")
+    tol_gamma: float = 1e-12
+    tol_s: float = 1e-9
+    max_iters: int = 1000
+    initial_step: float | None = None
+    max_step: float = 0.1
+    min_step: float = 1e-7
+    step_growth: float = 4.0
+    step_margin: float = 4.0
+    contact_threshold: float = 1e-10
+    interior_contact_threshold: float = 1e-6
+    overlap_tolerance: float = 1e-10
+    feasibility_tolerance: float = 1e-10
+    balance_tolerance: float = 1e-12
+    pin: bool = True
+    verbose: bool = False
+
+    def __post_init__(self) -> None:
+        if self.solver not in SOLVERS:
+            raise ValueError(f"unknown solver {self.solver!r}: choose one of {', '.join(SOLVERS)}")
+        for name in ("tol_gamma", "tol_s", "max_step", "min_step", "feasibility_tolerance",
+                     "contact_threshold", "interior_contact_threshold", "balance_tolerance"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
+        if self.initial_step is not None and not self.initial_step > 0:
+            raise ValueError(f"initial_step must be > 0, got {self.initial_step!r}")
+        if not self.min_step <= self.max_step:
+            raise ValueError(f"min_step {self.min_step} exceeds max_step {self.max_step}")
+        if not (isinstance(self.max_iters, int) and self.max_iters >= 1):
+            raise ValueError(f"max_iters must be a positive integer, got {self.max_iters!r}")
+        if self.step_growth <= 1 or self.step_margin <= 1:
+            raise ValueError("step_growth and step_margin must be > 1")
+
+    @classmethod
+    def from_options(cls, **options) -> "JamSettings":
+        """Build settings from keyword options, naming any unknown option in the error."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(options) - known)
+        if unknown:
+            raise TypeError(f"unknown jam option(s) {unknown}; known options: {sorted(known)}")
+        return cls(**options)
+
+    def with_changes(self, **changes) -> "JamSettings":
+        """A copy with some fields changed."""
+        return replace(self, **changes)

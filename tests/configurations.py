@@ -1,0 +1,68 @@
+"""Small test configurations built without the generators (so core tests stay independent)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from calippso import Packing
+from calippso.packing import ball_volume
+
+
+def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0,
+                               diameters: np.ndarray | None = None) -> Packing:
+    """Non-overlapping random configuration: insert spheres one by one at random free places.
+
+    Parameters
+    ----------
+    n, d : int
+        Particles and dimension.
+    phi : float
+        Target packing fraction (must be below the random-sequential-addition limit).
+    diameters : ndarray, optional
+        Diameters (mean scaled to 1); monodisperse by default. Inserted largest first.
+    """
+    rng = np.random.default_rng(seed)
+    sizes = np.ones(n) if diameters is None else np.asarray(diameters, float) / np.mean(diameters)
+    side = (np.sum(ball_volume(d, sizes / 2)) / phi) ** (1.0 / d)
+    box = np.full(d, side)
+    order = np.argsort(-sizes)
+    placed = np.zeros((0, d))
+    placed_sizes = np.zeros(0)
+    for k in order:
+        for _ in range(100000):
+            trial = rng.random(d) * side
+            delta = placed - trial
+            delta -= box * np.round(delta / box)
+            if np.all(np.einsum("nd,nd->n", delta, delta) > (0.5 * (placed_sizes + sizes[k])) ** 2):
+                placed = np.vstack([placed, trial])
+                placed_sizes = np.append(placed_sizes, sizes[k])
+                break
+        else:
+            raise RuntimeError(f"could not place particle {len(placed)} at phi = {phi}")
+    return Packing(placed, placed_sizes, box)
+
+
+def bidisperse(n: int, ratio: float = 1.4) -> np.ndarray:
+    """50:50 mixture of diameters 1 and `ratio`."""
+    sizes = np.ones(n)
+    sizes[n // 2:] = ratio
+    return sizes
+
+
+def lognormal(n: int, std: float, seed: int = 0) -> np.ndarray:
+    """Log-normal diameters with mean 1 and standard deviation `std`."""
+    rng = np.random.default_rng(seed)
+    s2 = np.log(1.0 + std**2)
+    return rng.lognormal(-0.5 * s2, np.sqrt(s2), n)
+
+
+def overlap_free(packing: Packing) -> float:
+    """Smallest relative gap over all pairs in contact range, by brute force (independent check)."""
+    delta = packing.positions[:, None, :] - packing.positions[None, :, :]
+    delta -= packing.box * np.round(delta / packing.box)
+    distance = np.sqrt(np.einsum("ijd,ijd->ij", delta, delta))
+    sigma = 0.5 * (packing.diameters[:, None] + packing.diameters[None, :])
+    gaps = distance / sigma - 1.0
+    np.fill_diagonal(gaps, np.inf)
+    return float(gaps.min())

@@ -1,0 +1,227 @@
+"""Physics of `calippso.jam`: converged, isostatic, overlap-free, balanced, normalised."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import calippso
+from calippso import JammingError, Packing, jam
+from calippso.packing import minimum_image
+
+from configurations import bidisperse, lognormal, overlap_free, random_sequential_addition
+
+
+def assert_jammed(result, *, balance=1e-10):
+    """Every invariant a jammed packing must satisfy, checked independently of the loop."""
+    packing = result.packing
+    assert result.converged, result.status
+    assert result.isostatic, result.status
+    assert result.isostaticity_gap == 0
+    # no overlap, brute force over all pairs
+    assert overlap_free(packing) >= -1e-12
+    # contacts: among stable particles only, i < j, and really touching
+    i, j = result.contacts.T
+    assert np.all(i < j)
+    assert not result.rattlers[i].any() and not result.rattlers[j].any()
+    delta = minimum_image(packing.positions[i] - packing.positions[j], packing.box)
+    distance = np.linalg.norm(delta, axis=1)
+    sigma = 0.5 * (packing.diameters[i] + packing.diameters[j])
+    assert np.max(np.abs(distance / sigma - 1)) < 1e-9
+    # every stable particle has at least d + 1 contacts; forces positive, mean 1
+    counts = np.bincount(result.contacts.ravel(), minlength=packing.n)
+    assert np.all(counts[~result.rattlers] >= packing.d + 1)
+    assert np.all(result.forces > 0)
+    assert result.forces.mean() == pytest.approx(1.0, rel=1e-12)
+    # force balance recomputed here from the returned geometry
+    normals = delta / distance[:, None]
+    net = np.zeros((packing.n, packing.d))
+    np.add.at(net, i, result.forces[:, None] * normals)
+    np.add.at(net, j, -result.forces[:, None] * normals)
+    assert np.abs(net).max() <= balance
+    assert result.force_balance <= balance
+    assert result.dual_normalization == pytest.approx(1.0, abs=1e-8)
+    assert result.iterations == len(result.history)
+
+
+@pytest.mark.parametrize(
+    "d, n, phi0",
+    [(2, 128, 0.45), (3, 128, 0.3), (4, 128, 0.2), (5, 256, 0.15)],
+)
+def test_jams_random_starts_in_every_dimension(d, n, phi0):
+    sizes = bidisperse(n, 1.4) if d == 2 else None
+    start = random_sequential_addition(n, d, phi0, seed=d, diameters=sizes)
+    result = jam(start)
+    assert_jammed(result)
+    assert result.phi > phi0
+
+
+def test_two_dimensional_bidisperse_density():
+    start = random_sequential_addition(128, 2, 0.5, seed=4, diameters=bidisperse(128, 1.4))
+    result = jam(start)
+    assert_jammed(result)
+    assert 0.80 < result.phi < 0.86  # phi_J ~ 0.84 for the 50:50 mixture, ratio 1.4
+
+
+def test_lognormal_polydisperse():
+    start = random_sequential_addition(128, 3, 0.3, seed=7, diameters=lognormal(128, 0.2))
+    result = jam(start)
+    assert_jammed(result)
+    np.testing.assert_allclose(result.packing.diameters / start.diameters,
+                               result.packing.diameters[0] / start.diameters[0], rtol=1e-12)
+
+
+@pytest.mark.parametrize("solver", ["highs", "clarabel", "cvxpy"])
+def test_every_backend_jams(solver):
+    start = random_sequential_addition(64, 3, 0.3, seed=11)
+    result = jam(start, solver=solver)
+    assert_jammed(result, balance=1e-10)
+    assert result.solver == solver
+
+
+@pytest.mark.slow
+def test_compressed_start_from_shared_data(shared_data):
+    start = calippso.read(shared_data / "mono_N1000_fba1e-3_then_ls1e-2_seed11")
+    result = jam(start, max_iters=400)
+    assert_jammed(result)
+    assert 0.630 < result.phi < 0.645
+
+
+def test_positions_diameters_box_signature():
+    start = random_sequential_addition(32, 2, 0.4, seed=1, diameters=bidisperse(32))
+    a = jam(start)
+    b = jam(start.positions, start.diameters, start.box)
+    np.testing.assert_array_equal(a.packing.positions, b.packing.positions)
+    assert a.n_contacts == b.n_contacts
+
+
+def test_history_records_every_lp():
+    start = random_sequential_addition(64, 3, 0.3, seed=2)
+    result = jam(start)
+    history = result.history
+    assert np.all(np.diff(history["wall_time"]) >= 0)
+    assert np.all(history["rows"] > 0)
+    assert np.all(history["solver_time"] <= history["wall_time"][-1])
+    # density never decreases while the loop runs (the last record may be a clean-up LP)
+    assert np.all(np.diff(history["phi"]) >= -1e-15)
+
+
+def test_result_round_trip(tmp_path):
+    start = random_sequential_addition(64, 3, 0.3, seed=3)
+    result = jam(start)
+    path = result.save(tmp_path / "jammed")
+    back = calippso.load_result(path)
+    np.testing.assert_array_equal(back.packing.positions, result.packing.positions)
+    np.testing.assert_array_equal(back.contacts, result.contacts)
+    np.testing.assert_array_equal(back.forces, result.forces)
+    np.testing.assert_array_equal(back.history, result.history)
+    assert back.status == result.status and back.converged == result.converged
+    assert back.isostatic and back.iterations == result.iterations
+    assert calippso.read(path).n == 64  # a result file is also a packing file
+
+
+def test_callback_can_stop_the_run():
+    start = random_sequential_addition(64, 3, 0.3, seed=5)
+    seen = []
+
+    def stop_after_two(info):
+        seen.append(info["iteration"])
+        return info["iteration"] >= 2
+
+    result = jam(start, callback=stop_after_two)
+    assert seen == [1, 2]
+    assert not result.converged and "callback" in result.status
+    assert overlap_free(result.packing) >= -1e-12
+
+
+def test_verbose_prints_a_table(capsys):
+    start = random_sequential_addition(32, 2, 0.4, seed=1, diameters=bidisperse(32))
+    result = jam(start, verbose=True)
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].split()[:3] == ["LP", "rows", "sqrtG-1"]
+    assert len(lines) == result.iterations + 1
+
+
+def test_roundoff_overlap_in_input_is_accepted():
+    jammed = jam(random_sequential_addition(64, 3, 0.3, seed=6)).packing
+    # every contact now overlaps by about 1e-14 sigma, as in files written with few digits
+    swollen = Packing(jammed.positions, jammed.diameters * (1 + 1e-14), jammed.box)
+    result = jam(swollen)
+    assert_jammed(result)
+    assert result.phi == pytest.approx(jammed.phi, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda p: (p.positions, p.diameters[:-1], p.box), "diameters has"),
+        (lambda p: (np.where(np.arange(p.n)[:, None] == 0, np.nan, p.positions), p.diameters,
+                    p.box), "non-finite"),
+        (lambda p: (p.positions, p.diameters, p.box[:2]), "box has 2 sides"),
+        (lambda p: (p.positions, np.where(np.arange(p.n) == 3, 0.55 * p.box[0], p.diameters),
+                    p.box), "box too small"),
+    ],
+)
+def test_bad_input_gives_clear_value_error(make, message):
+    start = random_sequential_addition(32, 3, 0.2, seed=8)
+    with pytest.raises(ValueError, match=message):
+        jam(*make(start))
+
+
+def test_real_overlap_is_refused():
+    start = random_sequential_addition(32, 3, 0.2, seed=9)
+    positions = start.positions.copy()
+    direction = minimum_image(positions[1] - positions[0], start.box)
+    positions[1] = positions[0] + direction / np.linalg.norm(direction) * (1 - 1e-3)
+    with pytest.raises(ValueError, match="overlapping particles"):
+        jam(Packing(positions, start.diameters, start.box))
+
+
+def test_duplicated_particle_is_refused():
+    start = random_sequential_addition(32, 3, 0.2, seed=9)
+    positions = start.positions.copy()
+    positions[1] = positions[0]
+    with pytest.raises(ValueError, match="overlapping"):
+        jam(Packing(positions, start.diameters, start.box))
+
+
+def test_unknown_solver_and_option():
+    start = random_sequential_addition(16, 2, 0.3, seed=1)
+    with pytest.raises(ValueError, match="unknown solver"):
+        jam(start, solver="gurobi")
+    with pytest.raises(TypeError, match="unknown jam option"):
+        jam(start, not_an_option=1)
+
+
+def test_failing_backend_falls_back(monkeypatch):
+    import calippso.solvers as solvers
+
+    real = solvers.get_solver
+
+    def broken_highs(name):
+        if name == "highs":
+            def fail(lp, settings):
+                raise RuntimeError("injected failure")
+            return fail
+        return real(name)
+
+    monkeypatch.setattr("calippso.ilp.get_solver", broken_highs)
+    start = random_sequential_addition(48, 3, 0.3, seed=12)
+    result = jam(start)
+    assert_jammed(result)
+    assert result.solver == "clarabel"
+    assert "retry" in result.status
+
+
+def test_every_backend_failing_keeps_last_configuration(monkeypatch):
+    def broken(name):
+        def fail(lp, settings):
+            raise RuntimeError("injected failure")
+        return fail
+
+    monkeypatch.setattr("calippso.ilp.get_solver", broken)
+    start = random_sequential_addition(48, 3, 0.3, seed=12)
+    with pytest.raises(JammingError, match="every LP backend failed") as caught:
+        jam(start)
+    assert caught.value.packing is not None
+    np.testing.assert_allclose(caught.value.packing.positions, start.wrapped().positions)
