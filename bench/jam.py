@@ -1,0 +1,75 @@
+"""Benchmark of `calippso.jam`: prints one table row per (input, backend).
+
+Inputs: the real packings in ../shared/data (when present) and packings made here by the
+Lubachevsky–Stillinger generator. Run from the repository root:
+
+    python bench/jam.py                 # default set (d = 3, N ~ 1000, HiGHS)
+    python bench/jam.py --backends highs clarabel --ls 2:256 3:1024 4:512
+
+Columns: N, d, backend, LPs, total wall time (s), share of it inside the LP solver,
+phi_J, N_c (contacts among stable particles), isostaticity gap, force balance, min gap.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import calippso
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+SHARED_INPUTS = ["skoge_donev_N1000_d3_p1e12.dat", "mono_N1000_fba1e-3_then_ls1e-2_seed11",
+                 "lognormal0.2_N1000_fba1e-3_then_ls1e-2_seed13",
+                 "mono_N1000_fba1e-3_phinom0.6_seed11"]
+
+
+def ls_input(d: int, n: int, pressure: float, seed: int) -> calippso.Packing:
+    """An LS packing compressed to `pressure` (bidisperse 1.4 in d = 2)."""
+    import generators
+
+    sizes = (generators.diameters.bidisperse(n, 1.4, 0.5, seed=seed) if d == 2
+             else generators.diameters.monodisperse(n))
+    return generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
+                                             seed=seed).packing
+
+
+def row(name: str, packing: calippso.Packing, backend: str, max_iters: int) -> str:
+    start = time.perf_counter()
+    result = calippso.jam(packing, solver=backend, max_iters=max_iters)
+    total = time.perf_counter() - start
+    history = result.history
+    share = history["solver_time"].sum() / total
+    return (f"{name:<44} {packing.n:>6} {packing.d:>2} {backend:>8} {result.iterations:>4} "
+            f"{total:>8.2f} {share:>6.1%} {result.phi:>11.8f} {result.n_contacts:>6} "
+            f"{result.isostaticity_gap:>4} {result.force_balance:>8.1e} "
+            f"{history['min_gap'][-1]:>9.1e} {'yes' if result.converged else 'NO':>4}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--backends", nargs="+", default=["highs"])
+    parser.add_argument("--ls", nargs="*", default=["3:1024"],
+                        help="LS inputs to generate, as d:N (reduced pressure --pressure)")
+    parser.add_argument("--pressure", type=float, default=1e5)
+    parser.add_argument("--no-shared", action="store_true", help="skip ../shared/data inputs")
+    parser.add_argument("--max-iters", type=int, default=500)
+    args = parser.parse_args()
+
+    inputs = []
+    if not args.no_shared and SHARED.is_dir():
+        inputs += [(name, calippso.read(SHARED / name)) for name in SHARED_INPUTS]
+    for spec in args.ls:
+        d, n = (int(v) for v in spec.split(":"))
+        inputs.append((f"our LS d={d} p={args.pressure:g}", ls_input(d, n, args.pressure, 1)))
+
+    print(f"{'input':<44} {'N':>6} {'d':>2} {'backend':>8} {'LPs':>4} {'total s':>8} "
+          f"{'solver':>6} {'phi_J':>11} {'N_c':>6} {'iso':>4} {'balance':>8} {'min gap':>9} "
+          f"{'conv':>4}")
+    for name, packing in inputs:
+        for backend in args.backends:
+            print(row(name, packing, backend, args.max_iters), flush=True)
+
+
+if __name__ == "__main__":
+    main()
