@@ -46,7 +46,8 @@ def assert_jammed(result, *, balance=1e-10):
 
 @pytest.mark.parametrize(
     "d, n, phi0",
-    [(2, 128, 0.45), (3, 128, 0.3), (4, 128, 0.2), (5, 256, 0.15)],
+    [(2, 128, 0.45), (3, 128, 0.3), (4, 128, 0.2), (5, 128, 0.1),
+     pytest.param(5, 256, 0.12, marks=pytest.mark.slow)],
 )
 def test_jams_random_starts_in_every_dimension(d, n, phi0):
     sizes = bidisperse(n, 1.4) if d == 2 else None
