@@ -122,7 +122,10 @@ def _expiry_time(x, xb, v, i, c, e):
     tau = np.inf
     if qa > 0.0:
         root = np.sqrt(disc)
-        tau = -qc / (qb + root) if qb >= 0.0 else (-qb + root) / qa
+        if qb < 0.0:
+            tau = (-qb + root) / qa
+        elif qb + root > 0.0:  # 0 only for a particle at rest (|v|² denormal, seen in MLS)
+            tau = -qc / (qb + root)
     elif qa < 0.0 and disc >= 0.0:
         root = np.sqrt(disc)
         for cand in ((-qb + root) / qa, (-qb - root) / qa):
