@@ -76,13 +76,13 @@ def plot(files: list[Path], image: Path) -> None:
     reference = np.linspace(4, 25, 50)
     left.plot(reference, 4.5 / reference, "k--", lw=1, label="φ = 4.5/γ (Bargiel)")
     left.plot([0.4], [0.705], "k*", ms=10, label="Bargiel max 0.705")
-    left.set(xscale="symlog", xlabel="aspect ratio γ = l/d", ylabel="φ", ylim=(0.15, 0.75),
-             linthresh=1.0)
-    right.set(xscale="symlog", xlabel="aspect ratio γ = l/d", ylabel="nematic order S")
+    left.set(xlabel="aspect ratio γ = l/d", ylabel="φ", ylim=(0.15, 0.75))
+    right.set(xlabel="aspect ratio γ = l/d", ylabel="nematic order S")
     right.axhline(0.05, color="k", ls=":", lw=1)
     for axis in (left, right):
         axis.legend(fontsize=8)
         axis.set_xscale("symlog", linthresh=1.0)
+        axis.set_xlim(left=-0.1)
     figure.tight_layout()
     figure.savefig(image, dpi=120)
 

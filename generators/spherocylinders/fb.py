@@ -243,7 +243,7 @@ def _species(n: int, aspect_ratio: float, mixture) -> tuple[np.ndarray, str]:
 
 
 def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | None = None,
-                 eps: float = 0.1, eps_rot: float = 0.02, contraction_rate: float = 1e-3,
+                 eps: float = 0.1, eps_rot: float = 0.02, contraction_rate: float = 1e-4,
                  initial_density: float | None = None, regrowth: float = 1e-3,
                  tolerance: float = 1e-4, max_steps: int = 200_000, seed: int = 0,
                  progress: bool = False) -> GenerationResult:
