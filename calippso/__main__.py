@@ -10,9 +10,9 @@ def main(argv: list[str] | None = None) -> int:
     """Jam the packaged example configuration (d = 3) and print what the jammed packing says."""
     import calippso
 
-    example = files("calippso") / "data" / "example_d3_n512_rsa.npz"
+    example = files("calippso") / "data" / "example_d3_n512_ls.npz"
     packing = calippso.read(str(example))
-    print(f"Input: {packing} (random sequential addition, built in)")
+    print(f"Input: {packing} (Lubachevsky-Stillinger at reduced pressure 1e5, built in)")
     result = calippso.jam(packing, verbose=True)
     print(result.summary())
     return 0 if result.converged and result.isostatic else 1
