@@ -1,0 +1,22 @@
+"""Each scene loads only what it needs."""
+
+import subprocess
+import sys
+
+
+def _modules_after(statement: str) -> set[str]:
+    code = f"{statement}; import sys; print(' '.join(sorted(sys.modules)))"
+    output = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True).stdout
+    return {name.split(".")[0] for name in output.split()}
+
+
+def test_import_calippso_is_light():
+    loaded = _modules_after("import calippso; calippso.Packing; calippso.read")
+    assert not loaded & {"numba", "highspy", "clarabel", "cvxpy", "matplotlib"}
+
+
+def test_jam_loads_only_the_chosen_backend():
+    loaded = _modules_after("import calippso; calippso.jam")
+    assert "numba" not in loaded
+    assert not loaded & {"highspy", "clarabel", "cvxpy"}  # backends load on first solve
