@@ -144,3 +144,13 @@ def verlet_lists(x: np.ndarray, box: np.ndarray, diameters: np.ndarray, skin: fl
         neighbours[fill[pair_j[p]]] = pair_i[p]
         fill[pair_j[p]] += 1
     return start, neighbours
+
+
+@njit(cache=True)
+def wrap_into_box(x: np.ndarray, box: np.ndarray) -> None:
+    """Wrap positions (N, d) into [0, L) in place; a coordinate that rounds to L becomes 0."""
+    for i in range(x.shape[0]):
+        for mu in range(x.shape[1]):
+            x[i, mu] -= box[mu] * np.floor(x[i, mu] / box[mu])
+            if x[i, mu] >= box[mu] or x[i, mu] < 0.0:
+                x[i, mu] = 0.0

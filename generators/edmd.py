@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .cells import verlet_lists
+from .cells import verlet_lists, wrap_into_box
 
 __all__ = ["run_window", "skin_length"]
 
@@ -280,11 +280,7 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
                 _advance(x, v, tl, i, t)
             if rebuild:
                 rebuilds += 1
-                for i in range(n):
-                    for mu in range(d):
-                        x[i, mu] -= box[mu] * np.floor(x[i, mu] / box[mu])
-                        if x[i, mu] >= box[mu] or x[i, mu] < 0.0:
-                            x[i, mu] = 0.0
+                wrap_into_box(x, box)
                 xb[:, :] = x
                 build_scale = scale + rate * t
                 delta = skin_length(box, n, build_scale, s_mean, s_max, skin)
@@ -367,8 +363,5 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
     kt_time += 0.5 * (kt_start + _temperature(v)) * (t - t_rescale)
     for i in range(n):
         _advance(x, v, tl, i, t)
-        for mu in range(d):
-            x[i, mu] -= box[mu] * np.floor(x[i, mu] / box[mu])
-            if x[i, mu] >= box[mu] or x[i, mu] < 0.0:
-                x[i, mu] = 0.0
+    wrap_into_box(x, box)
     return t, scale + rate * t, virial, kt_time, collisions, rebuilds

@@ -12,7 +12,7 @@ from calippso.packing import Packing
 from ._checks import (check_diameters, check_dimension, check_phi, check_positive,
                       phi_estimate, remove_roundoff_overlap)
 from ._progress import Progress
-from .cells import verlet_lists
+from .cells import verlet_lists, wrap_into_box
 from .initial import poisson
 from .result import GenerationResult, make_history
 
@@ -93,11 +93,7 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin)
         j_exp = np.ceil(-np.log10(gap)) if gap > 0 else 0.0
         outer -= 0.5 ** max(j_exp, 0.0) * contraction
         if np.sqrt(moved) > 0.5 * delta:
-            for i in range(n):
-                for mu in range(d):
-                    x[i, mu] -= box[mu] * np.floor(x[i, mu] / box[mu])
-                    if x[i, mu] >= box[mu] or x[i, mu] < 0.0:
-                        x[i, mu] = 0.0
+            wrap_into_box(x, box)
             xb[:, :] = x
             start, neighbours = verlet_lists(x, box, s * outer, delta)
     return outer, inner, n_steps, False
