@@ -1,11 +1,20 @@
 """Readers and writers: one module per file format, one `read` / `write` dispatch.
 
-Formats
--------
-- ``.npz``: our own (a `Packing`, or a full `JammingResult`), any d.
-- Skoge–Donev LS text output and the stripped CALiPPSO.jl variant (``.dat``, ``.txt``), any d.
-- PackingGeneration: a folder with ``packing.xyzd`` + ``packing.nfo`` + ``generation.conf``,
-  or the ``.xyzd`` path itself (d = 3).
+Formats (chosen by extension; a folder is a PackingGeneration folder)
+--------------------------------------------------------------------
+==========================  ======================  =====  ===================================
+format                      extensions              d      holds
+==========================  ======================  =====  ===================================
+calippso npz                ``.npz``                any    packing, or a full result
+HDF5 (needs h5py)           ``.h5``, ``.hdf5``      any    packing, or a full result
+extended XYZ (ASE, OVITO)   ``.xyz``, ``.extxyz``   2, 3   packing (+ rattlers, contacts)
+GSD (HOOMD, OVITO; gsd)     ``.gsd``                2, 3   packing (+ rattlers, contacts)
+Skoge–Donev / CALiPPSO.jl   ``.dat``, ``.txt``      any    packing
+PackingGeneration           ``.xyzd`` or a folder   3      packing (xyzd + nfo + conf)
+==========================  ======================  =====  ===================================
+
+Writing a packing to a format that cannot hold it (d = 4 to extended XYZ, for instance)
+raises `ValueError` naming the formats that can.
 """
 
 from __future__ import annotations
@@ -13,10 +22,21 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..packing import Packing
-from . import npz, packing_generation, skoge_donev
+import numpy as np
 
-__all__ = ["read", "write"]
+from ..packing import Packing
+from . import extxyz, gsd, hdf5, npz, packing_generation, skoge_donev
+
+__all__ = ["read", "read_result", "write", "SUFFIXES"]
+
+#: Extension → format module name.
+SUFFIXES: dict[str, str] = {
+    ".npz": "npz", ".h5": "hdf5", ".hdf5": "hdf5", ".xyz": "extxyz", ".extxyz": "extxyz",
+    ".gsd": "gsd", ".dat": "skoge_donev", ".txt": "skoge_donev", ".xyzd": "packing_generation",
+}
+
+_MODULES = {"npz": npz, "hdf5": hdf5, "extxyz": extxyz, "gsd": gsd, "skoge_donev": skoge_donev,
+            "packing_generation": packing_generation}
 
 
 def _format_of(path: Path) -> str:
@@ -25,16 +45,12 @@ def _format_of(path: Path) -> str:
             return "packing_generation"
         raise ValueError(f"{path} is a folder without packing.xyzd: not a PackingGeneration folder")
     suffix = path.suffix.lower()
-    if suffix == ".xyzd":
-        return "packing_generation"
-    if suffix == ".npz":
-        return "npz"
-    if suffix in (".dat", ".txt", ""):
+    if suffix == "":
         return "skoge_donev"
-    raise ValueError(
-        f"unknown file format {suffix!r} for {path}: expected .npz, .xyzd (or a PackingGeneration "
-        f"folder), or Skoge-Donev text (.dat/.txt)"
-    )
+    if suffix not in SUFFIXES:
+        raise ValueError(f"unknown file format {suffix!r} for {path}: expected one of "
+                         f"{', '.join(SUFFIXES)} or a PackingGeneration folder")
+    return SUFFIXES[suffix]
 
 
 def read(path: str | os.PathLike) -> Packing:
@@ -59,26 +75,55 @@ def read(path: str | os.PathLike) -> Packing:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"no such file or folder: {path}")
-    kind = _format_of(path)
-    if kind == "packing_generation":
-        return packing_generation.read(path)
-    if kind == "npz":
-        return npz.read(path)
-    return skoge_donev.read(path)
+    return _MODULES[_format_of(path)].read(path)
+
+
+def read_result(path: str | os.PathLike):
+    """Read a full `JammingResult` from an `.npz` or HDF5 result file.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the file does not exist.
+    ValueError
+        If the file is not a result file (a bare packing, another format, or unreadable).
+    """
+    from ..result import JammingResult
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
+    kind = SUFFIXES.get(path.suffix.lower())
+    if kind == "hdf5":
+        return hdf5.read_result(path)
+    if kind != "npz":
+        raise ValueError(f"{path}: results are stored as .npz or .h5, not {path.suffix or 'no extension'}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return JammingResult.from_arrays({key: data[key] for key in data.files})
+    except (OSError, EOFError) as error:
+        raise ValueError(f"{path}: unreadable .npz file ({error})") from None
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None
 
 
 def write(obj, path: str | os.PathLike) -> Path:
     """Write a `Packing` (or a `JammingResult`) in the format named by the extension.
 
-    ``.npz`` stores a result in full; the text formats store the packing only.
+    ``.npz`` and ``.h5`` store a result in full; the other formats store the packing (extended
+    XYZ and GSD also mark rattlers and contact numbers).
+
+    Raises
+    ------
+    ValueError
+        If the extension is unknown, or the format cannot hold this packing (its d).
     """
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix == ".npz":
-        return npz.write(obj, path)
-    packing = getattr(obj, "packing", obj)
-    if suffix in (".dat", ".txt"):
-        return skoge_donev.write(packing, path)
-    if suffix == ".xyzd":
-        return packing_generation.write(packing, path)
-    raise ValueError(f"unknown output format {suffix!r}: expected .npz, .dat, .txt or .xyzd")
+    if suffix not in SUFFIXES:
+        raise ValueError(f"unknown output format {suffix!r} for {path}: expected one of "
+                         f"{', '.join(SUFFIXES)}")
+    kind = SUFFIXES[suffix]
+    if kind in ("npz", "hdf5", "extxyz", "gsd"):
+        return _MODULES[kind].write(obj, path)
+    return _MODULES[kind].write(getattr(obj, "packing", obj), path)

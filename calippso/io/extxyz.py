@@ -1,0 +1,149 @@
+"""Extended XYZ (ASE, OVITO): a periodic packing in d = 2 or 3, one particle per line.
+
+Layout written::
+
+    N
+    Lattice="Lx 0 0 0 Ly 0 0 0 Lz" Properties=species:S:1:pos:R:3:diameter:R:1 pbc="T T T" dimension=3
+    X x y z sigma
+    ...
+
+Positions are wrapped into [0, L) and written with 17 significant digits, so a round trip is
+exact. In d = 2 the z column is 0, ``pbc="T T F"``, ``dimension=2`` and the third lattice
+vector has the length of the largest diameter (viewers need one). A `JammingResult` adds the
+columns ``rattler:L:1`` (T for rattlers) and ``contacts:I:1`` (contacts per particle), which
+OVITO can use to colour particles. The reader also accepts OVITO's ``radius`` column instead
+of ``diameter``.
+"""
+
+from __future__ import annotations
+
+import shlex
+from pathlib import Path
+
+import numpy as np
+
+from ..packing import Packing
+from ._atomic import atomic_path
+
+__all__ = ["read", "write"]
+
+def write(obj, path: Path) -> Path:
+    """Write a `Packing` or `JammingResult` (d ≤ 3) as extended XYZ.
+
+    Raises
+    ------
+    ValueError
+        If d > 3 (extended XYZ holds three coordinates; use .npz or .h5).
+    """
+    packing = getattr(obj, "packing", obj).wrapped()
+    if packing.d > 3:
+        raise ValueError(f"extended XYZ holds d <= 3, this packing has d = {packing.d}: "
+                         f"write .npz or .h5 instead")
+    n, d = packing.n, packing.d
+    positions = np.zeros((n, 3))
+    positions[:, :d] = packing.positions
+    sides = np.append(packing.box, packing.diameters.max()) if d == 2 else packing.box
+    lattice = " ".join(f"{v:.17g}" for v in np.diag(sides).ravel())
+    properties = "species:S:1:pos:R:3:diameter:R:1"
+    columns = [np.full(n, "X"), *(positions[:, k] for k in range(3)), packing.diameters]
+    if hasattr(obj, "rattlers") and hasattr(obj, "contact_numbers"):
+        properties += ":rattler:L:1:contacts:I:1"
+        columns += [np.where(obj.rattlers, "T", "F"), obj.contact_numbers]
+    pbc = "T T T" if d == 3 else "T T F"
+    header = f'Lattice="{lattice}" Properties={properties} pbc="{pbc}" dimension={d}'
+    body = [" ".join(_format(value) for value in row) for row in zip(*columns)]
+    path = Path(path)
+    with atomic_path(path) as temporary:
+        temporary.write_text("\n".join([str(n), header, *body]) + "\n")
+    return path
+
+
+def _format(value) -> str:
+    if isinstance(value, (float, np.floating)):
+        return f"{value:.17g}"
+    return str(value)
+
+
+def _header(line: str, path: Path) -> dict[str, str]:
+    try:
+        tokens = shlex.split(line)
+    except ValueError as error:
+        raise ValueError(f"{path}, line 2: unreadable extended XYZ header ({error})") from None
+    fields = {}
+    for token in tokens:
+        key, _, value = token.partition("=")
+        fields[key.lower()] = value
+    return fields
+
+
+def _columns(properties: str, path: Path) -> dict[str, tuple[int, int]]:
+    parts = properties.split(":")
+    if len(parts) % 3:
+        raise ValueError(f"{path}, line 2: Properties={properties!r} is not name:type:count triples")
+    columns, start = {}, 0
+    for name, count in zip(parts[::3], parts[2::3]):
+        columns[name.lower()] = (start, int(count))
+        start += int(count)
+    return columns
+
+
+def read(path: Path) -> Packing:
+    """Read the first frame of an extended XYZ file into a `Packing`.
+
+    The box comes from a diagonal ``Lattice``; diameters from a ``diameter`` column (or twice
+    a ``radius`` column); d from ``dimension=`` or, failing that, 2 when ``pbc`` is
+    ``"T T F"`` and 3 otherwise.
+
+    Raises
+    ------
+    ValueError
+        If the file is not extended XYZ, has no lattice, a non-rectangular one, or no
+        diameter/radius column.
+    """
+    path = Path(path)
+    try:
+        lines = path.read_text().splitlines()
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a text file (expected extended XYZ)") from None
+    try:
+        n = int(lines[0].strip())
+    except (IndexError, ValueError):
+        raise ValueError(f"{path}, line 1: expected the number of particles") from None
+    if len(lines) < n + 2:
+        raise ValueError(f"{path}: truncated, {max(len(lines) - 2, 0)} particle lines where N = {n}")
+    fields = _header(lines[1], path)
+    if "lattice" not in fields:
+        raise ValueError(f"{path}, line 2: no Lattice= (a periodic box is required)")
+    try:
+        lattice = np.array(fields["lattice"].split(), dtype=float).reshape(3, 3)
+    except ValueError:
+        raise ValueError(f"{path}, line 2: Lattice= needs 9 numbers") from None
+    if np.any(lattice[~np.eye(3, dtype=bool)] != 0):
+        raise ValueError(f"{path}, line 2: only rectangular (diagonal) lattices are supported")
+    pbc = fields.get("pbc", "T T T").upper().split()
+    d = int(fields.get("dimension", 2 if pbc[2:3] == ["F"] else 3))
+    if d not in (2, 3):
+        raise ValueError(f"{path}, line 2: dimension={d}, expected 2 or 3")
+    columns = _columns(fields.get("properties", "species:S:1:pos:R:3"), path)
+    if "pos" not in columns:
+        raise ValueError(f"{path}, line 2: no pos column in Properties")
+    size = "diameter" if "diameter" in columns else "radius" if "radius" in columns else None
+    if size is None:
+        raise ValueError(f"{path}, line 2: no diameter or radius column in Properties")
+    rows = [line.split() for line in lines[2:2 + n]]
+    width = sum(count for _, count in columns.values())
+    short = next((k for k, row in enumerate(rows) if len(row) < width), None)
+    if short is not None:
+        raise ValueError(f"{path}, line {short + 3}: {len(rows[short])} fields where Properties "
+                         f"needs {width}")
+
+    def column(name: str) -> np.ndarray:
+        start, count = columns[name]
+        return np.array([row[start:start + count] for row in rows], dtype=float)
+
+    try:
+        positions = column("pos")[:, :d]
+        diameters = column(size)[:, 0] * (2.0 if size == "radius" else 1.0)
+    except ValueError as error:
+        raise ValueError(f"{path}: non-numeric position or size ({error})") from None
+    return Packing(positions, diameters, np.diag(lattice)[:d].copy())
