@@ -11,6 +11,7 @@ from calippso.packing import Packing
 
 from ._checks import (check_diameters, check_dimension, check_positive,
                       remove_roundoff_overlap)
+from .checkpoint import Checkpoint, digest
 from ._progress import Progress
 from .edmd import run_window
 from .initial import poisson
@@ -103,6 +104,32 @@ class GrowingSpheres:
         elif rebuilds * 4 * n < collisions:
             self.skin = max(0.05, self.skin / 1.25)
 
+    #: Attributes that, with the nominal diameters and the box, make up the whole state between
+    #: two windows (each `run_window` call starts from them alone).
+    STATE = ("x", "v", "scale", "skin", "time", "collisions", "rebuilds", "start_shrink")
+
+    def state(self) -> dict:
+        """The state between two windows, for a checkpoint (copies of the arrays)."""
+        return {f"state_{name}": np.copy(getattr(self, name)) for name in self.STATE}
+
+    def restore(self, saved: dict) -> None:
+        """Continue from a `state()` dict (as read back from a checkpoint), bit-for-bit.
+
+        Raises
+        ------
+        ValueError
+            If the saved arrays do not match this run's N and d.
+        """
+        x, v = saved["state_x"], saved["state_v"]
+        if x.shape != self.x.shape or v.shape != self.v.shape:
+            raise ValueError(f"checkpoint holds {x.shape} positions, this run has {self.x.shape}")
+        self.x = np.array(x, dtype=np.float64)
+        self.v = np.array(v, dtype=np.float64)
+        for name in ("scale", "skin", "time", "start_shrink"):
+            setattr(self, name, float(saved[f"state_{name}"]))
+        for name in ("collisions", "rebuilds"):
+            setattr(self, name, int(saved[f"state_{name}"]))
+
     def packing(self) -> tuple[Packing, float]:
         """The current configuration, checked for overlaps with an independent KD-tree search.
 
@@ -133,7 +160,8 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
                            growth_rate: float = 1e-2, target_pressure: float = 1e5,
                            temperature: float = 1.0, max_collisions: int | None = None,
                            seed: int = 0, progress: bool = False, pressure_window: int = 20,
-                           skin: float = 0.1) -> GenerationResult:
+                           skin: float = 0.1, checkpoint=None,
+                           checkpoint_every: float = 60.0) -> GenerationResult:
     """Compress hard spheres by Lubachevsky–Stillinger event-driven MD until a target pressure.
 
     Parameters
@@ -164,6 +192,15 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
     skin : float
         Initial Verlet-list skin, in mean diameters (adapted along the run to balance list
         rebuilds against list length; widened automatically at low density).
+    checkpoint : str or PathLike, optional
+        File (``.npz``) holding the state of the run (`generators.checkpoint`). It is written
+        atomically at the end of a pressure window at most every `checkpoint_every` seconds,
+        and when the run ends. If the file exists, the run resumes from it and continues
+        bit-for-bit as the uninterrupted run would; `target_pressure` and `max_collisions`
+        may differ from the first call (a finished run can be pushed further), every other
+        input must be the same.
+    checkpoint_every : float
+        Smallest wall time in seconds between two checkpoint writes (0: every window).
 
     Returns
     -------
@@ -172,12 +209,14 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
         the result is rescaled so that its diameters equal the given ones (the box follows).
         `extra`: ``rebuilds`` (neighbour-list rebuilds), ``start_shrink`` (factor applied to
         an overlapping start), ``overlap_correction`` (relative shrink for round-off overlaps
-        at the end, ~1e-15 or 0), ``time`` (simulated time).
+        at the end, ~1e-15 or 0), ``time`` (simulated time), ``resumed`` (whether the run
+        continued from a checkpoint; `wall_time` then adds up every call's time).
 
     Raises
     ------
     ValueError
-        On non-positive diameters, d < 2, or non-positive rate / pressure / temperature.
+        On non-positive diameters, d < 2, non-positive rate / pressure / temperature, or a
+        checkpoint file that belongs to another run.
     """
     wall = time.perf_counter()
     growth_rate = check_positive(growth_rate, "growth_rate")
@@ -187,33 +226,60 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
         raise ValueError(f"pressure_window must be >= 1 collision per particle, got {pressure_window}")
     start, from_diameters = start_packing(packing_or_diameters, d, seed)
     state = GrowingSpheres(start, temperature, seed, check_positive(skin, "skin"))
+    saver = Checkpoint(checkpoint, "lubachevsky_stillinger", {
+        "growth_rate": growth_rate, "temperature": temperature, "seed": int(seed),
+        "pressure_window": int(pressure_window), "skin": float(skin),
+        "start": digest(start.positions, start.diameters, start.box)},
+        every=check_positive(checkpoint_every, "checkpoint_every", allow_zero=True))
     limit = np.inf if max_collisions is None else int(max_collisions)
-    rows = []
-    bar = Progress(progress, np.log10(target_pressure), "LS log10(p)")
+    rows: list[tuple] = []
     pressure = np.nan
+    earlier_wall = 0.0
+    saved = saver.load()
+    if saved is not None:
+        state.restore(saved)
+        rows = [tuple(row) for row in saved["history"].tolist()]
+        pressure = float(saved["pressure"])
+        earlier_wall = float(saved["wall_time"])
+
+    def snapshot() -> dict:
+        return {**state.state(), "history": make_history(rows), "pressure": pressure,
+                "wall_time": earlier_wall + time.perf_counter() - wall}
+
+    bar = Progress(progress, np.log10(target_pressure), "LS log10(p)")
     status = ""
     try:
         while True:
+            if rows and pressure >= target_pressure:
+                status = f"reached reduced pressure {pressure:.3g} >= target {target_pressure:.3g}"
+                break
+            if rows and state.collisions >= limit:
+                status = f"stopped at max_collisions = {limit} (pressure {pressure:.3g})"
+                break
             window = int(min(pressure_window * start.n, limit - state.collisions))
             pressure = state.window(window, growth_rate)
             phi = state.phi
             rows.append((state.time, phi, pressure, growth_rate))
             bar.update(np.log10(max(pressure, 1.0)), phi=f"{phi:.5f}", p=f"{pressure:.3g}")
-            if pressure >= target_pressure:
-                status = f"reached reduced pressure {pressure:.3g} >= target {target_pressure:.3g}"
-                break
-            if state.collisions >= limit:
-                status = f"stopped at max_collisions = {limit} (pressure {pressure:.3g})"
-                break
+            saver.maybe_save(snapshot())
     finally:
         bar.close()
+    saver.save(snapshot())
     packing, correction = state.packing()
     if from_diameters:
         factor = float(np.mean(start.diameters)) / packing.mean_diameter
         packing = Packing(packing.positions * factor, packing.diameters * factor,
                           packing.box * factor).wrapped()
+        # the rescaling can round a contact into a 1e-16 overlap again: remove it as well
+        diameters, rescaled = remove_roundoff_overlap(packing.positions, packing.diameters,
+                                                      packing.box)
+        if rescaled:
+            packing = Packing(packing.positions, diameters, packing.box)
+            correction += rescaled
     return GenerationResult(
         packing=packing, reduced_pressure=float(pressure), collisions=state.collisions,
-        wall_time=time.perf_counter() - wall, history=make_history(rows), status=status,
+        wall_time=earlier_wall + time.perf_counter() - wall, history=make_history(rows),
+        status=status,
         extra={"rebuilds": state.rebuilds, "start_shrink": state.start_shrink,
-               "overlap_correction": correction, "time": state.time})
+               "overlap_correction": correction, "time": state.time,
+               "resumed": saved is not None})

@@ -9,6 +9,7 @@ import numpy as np
 from calippso.packing import Packing
 
 from ._checks import check_positive
+from .checkpoint import Checkpoint, digest
 from ._progress import Progress
 from .ls import GrowingSpheres
 from .result import GenerationResult, make_history
@@ -20,7 +21,8 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
                     rate_decrease: float = 2.0, max_pressure: float = 1e12,
                     temperature: float = 0.2, pressure_window: int = 20,
                     max_equilibrations: int = 50, max_collisions: int | None = None,
-                    seed: int = 0, progress: bool = False, skin: float = 0.1) -> GenerationResult:
+                    seed: int = 0, progress: bool = False, skin: float = 0.1,
+                    checkpoint=None, checkpoint_every: float = 60.0) -> GenerationResult:
     """Jam a packing while staying in its basin: fast growth first, ever slower near jamming.
 
     The protocol, in event-driven MD (`GrowingSpheres`, as in LS):
@@ -59,6 +61,14 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
         Show a tqdm bar (log10 p); quiet by default.
     skin : float
         Initial Verlet skin in mean diameters.
+    checkpoint : str or PathLike, optional
+        File (``.npz``) holding the state of the run, protocol phase included
+        (`generators.checkpoint`). Written atomically at the end of a window at most every
+        `checkpoint_every` seconds, and when the run ends. If the file exists the run resumes
+        from it and continues bit-for-bit as the uninterrupted run would (a jammed run returns
+        at once); only `max_collisions` may differ from the first call.
+    checkpoint_every : float
+        Smallest wall time in seconds between two checkpoint writes (0: every window).
 
     Returns
     -------
@@ -66,12 +76,14 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
         `packing` in the start's box with grown diameters; history has one record per window
         (rate 0 during equilibration); `extra`: ``rate`` (last growth rate),
         ``equilibrations`` (windows at zero rate), ``rebuilds``, ``start_shrink``,
-        ``overlap_correction``, ``time``.
+        ``overlap_correction``, ``time``, ``resumed`` (whether the run continued from a
+        checkpoint; `wall_time` then adds up every call's time).
 
     Raises
     ------
     ValueError
-        On non-positive rates, pressure or temperature, or final_rate > initial_rate.
+        On non-positive rates, pressure or temperature, final_rate > initial_rate, or a
+        checkpoint file that belongs to another run.
     """
     wall = time.perf_counter()
     if not isinstance(packing, Packing):
@@ -83,14 +95,43 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
     if not rate_decrease > 1:
         raise ValueError(f"rate_decrease must be > 1, got {rate_decrease!r}")
     max_pressure = check_positive(max_pressure, "max_pressure")
-    state = GrowingSpheres(packing, check_positive(temperature, "temperature"), seed,
-                           check_positive(skin, "skin"))
+    temperature = check_positive(temperature, "temperature")
+    state = GrowingSpheres(packing, temperature, seed, check_positive(skin, "skin"))
+    saver = Checkpoint(checkpoint, "closest_jamming", {
+        "initial_rate": rate, "final_rate": final_rate, "rate_decrease": float(rate_decrease),
+        "max_pressure": max_pressure, "temperature": temperature,
+        "pressure_window": int(pressure_window), "max_equilibrations": int(max_equilibrations),
+        "seed": int(seed), "skin": float(skin),
+        "start": digest(packing.positions, packing.diameters, packing.box)},
+        every=check_positive(checkpoint_every, "checkpoint_every", allow_zero=True))
     limit = np.inf if max_collisions is None else int(max_collisions)
     window = pressure_window * packing.n
-    rows = []
+    rows: list[tuple] = []
     equilibrations = 0
     status = ""
     pressure = np.nan
+    equilibrating = False   # phase: growing, or equilibrating at zero rate after p > max
+    rounds = 0              # equilibration windows in the current phase
+    earlier_wall = 0.0
+    saved = saver.load()
+    if saved is not None:
+        state.restore(saved)
+        rows = [tuple(row) for row in saved["history"].tolist()]
+        pressure = float(saved["pressure"])
+        rate = float(saved["rate"])
+        equilibrations = int(saved["equilibrations"])
+        equilibrating = bool(saved["equilibrating"])
+        rounds = int(saved["rounds"])
+        earlier_wall = float(saved["wall_time"])
+        if str(saved["status"]).startswith("jammed"):
+            status = str(saved["status"])
+
+    def snapshot() -> dict:
+        return {**state.state(), "history": make_history(rows), "pressure": pressure,
+                "rate": rate, "equilibrations": equilibrations, "equilibrating": equilibrating,
+                "rounds": rounds, "status": status,
+                "wall_time": earlier_wall + time.perf_counter() - wall}
+
     bar = Progress(progress, np.log10(max_pressure), "MLS log10(p)")
 
     def measure(growth: float) -> float:
@@ -101,30 +142,38 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
 
     try:
         while not status:
-            pressure = measure(rate)
-            if state.collisions >= limit:
+            if rows and state.collisions >= limit:
                 status = f"stopped at max_collisions = {limit}"
-            elif pressure > max_pressure and rate <= final_rate:
-                status = f"jammed: p = {pressure:.3g} > {max_pressure:.3g} at the final rate"
-            elif pressure > max_pressure:
-                for _ in range(max_equilibrations):
-                    pressure = measure(0.0)
-                    equilibrations += 1
-                    if pressure < max_pressure or state.collisions >= limit:
-                        break
+                break
+            if not equilibrating:
+                pressure = measure(rate)
                 if state.collisions >= limit:
                     status = f"stopped at max_collisions = {limit}"
-                elif pressure >= max_pressure:
-                    status = (f"jammed: p = {pressure:.3g} stayed above {max_pressure:.3g} for "
-                              f"{max_equilibrations} equilibration windows")
-                else:
+                elif pressure > max_pressure and rate <= final_rate:
+                    status = f"jammed: p = {pressure:.3g} > {max_pressure:.3g} at the final rate"
+                elif pressure > max_pressure:
+                    equilibrating, rounds = True, 0
+            else:
+                pressure = measure(0.0)
+                equilibrations += 1
+                rounds += 1
+                if state.collisions >= limit:
+                    status = f"stopped at max_collisions = {limit}"
+                elif pressure < max_pressure:
                     rate = max(rate / rate_decrease, final_rate)
+                    equilibrating = False
+            if equilibrating and rounds >= max_equilibrations and not status:
+                status = (f"jammed: p = {pressure:.3g} stayed above {max_pressure:.3g} for "
+                          f"{max_equilibrations} equilibration windows")
+            saver.maybe_save(snapshot())
     finally:
         bar.close()
+    saver.save(snapshot())
     result_packing, correction = state.packing()
     return GenerationResult(
         packing=result_packing, reduced_pressure=float(pressure), collisions=state.collisions,
-        wall_time=time.perf_counter() - wall, history=make_history(rows), status=status,
+        wall_time=earlier_wall + time.perf_counter() - wall, history=make_history(rows),
+        status=status,
         extra={"rate": rate, "equilibrations": equilibrations, "rebuilds": state.rebuilds,
                "start_shrink": state.start_shrink, "overlap_correction": correction,
-               "time": state.time})
+               "time": state.time, "resumed": saved is not None})

@@ -1,0 +1,204 @@
+"""Checkpoints of long generator runs (LS and MLS): a run killed with SIGKILL loses no finished
+window, and the resumed run ends bit-for-bit where the uninterrupted run ends."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import generators
+from calippso.neighbors import min_gap
+from generators import diameters as dist
+from generators.checkpoint import Checkpoint
+
+REPO = Path(__file__).resolve().parents[1]
+
+LS_ARGS = dict(d=3, target_pressure=1e12, growth_rate=1e-2, seed=5)
+MLS_ARGS = dict(max_pressure=1e9, final_rate=1e-3, seed=6)
+
+
+def mls_start():
+    return generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=6)
+
+
+def assert_same(a, b) -> None:
+    """Bit-for-bit equality of two generation results (positions, diameters, history)."""
+    np.testing.assert_array_equal(a.packing.positions, b.packing.positions)
+    np.testing.assert_array_equal(a.packing.diameters, b.packing.diameters)
+    np.testing.assert_array_equal(a.packing.box, b.packing.box)
+    np.testing.assert_array_equal(a.history, b.history)
+    assert a.collisions == b.collisions
+    assert a.reduced_pressure == b.reduced_pressure
+    assert a.status == b.status
+
+
+def assert_no_overlap(packing) -> None:
+    gap, overlapping = min_gap(packing.positions, packing.diameters, packing.box)
+    assert overlapping == 0 and gap >= -1e-12
+
+
+#: Runs one generator with a checkpoint in a child process. Each window is followed by a short
+#: sleep (it paces the run so that the parent can kill it mid-way; the physics is untouched).
+CHILD = textwrap.dedent("""
+    import sys, time
+    import numpy as np
+    import generators
+    from generators import diameters as dist
+    from generators.ls import GrowingSpheres
+
+    window = GrowingSpheres.window
+    def paced(self, *args, **kwargs):
+        pressure = window(self, *args, **kwargs)
+        time.sleep(0.05)
+        return pressure
+    GrowingSpheres.window = paced
+
+    kind, path = sys.argv[1], sys.argv[2]
+    if kind == "ls":
+        generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
+                                          checkpoint_every=0, **{ls})
+    else:
+        start = generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=6)
+        generators.closest_jamming(start, checkpoint=path, checkpoint_every=0, **{mls})
+""").format(ls=repr(LS_ARGS), mls=repr(MLS_ARGS))
+
+
+def run_and_kill(kind: str, path: Path, windows: int) -> int:
+    """Start a checkpointed run in a child process, SIGKILL it after `windows` saved windows.
+
+    Returns the number of windows in the checkpoint left behind.
+    """
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    child = subprocess.Popen([sys.executable, "-c", CHILD, kind, str(path)], env=env,
+                             stderr=subprocess.PIPE)
+    target = path.with_name(path.name + ".npz")
+    deadline = time.monotonic() + 120
+    try:
+        while time.monotonic() < deadline:
+            if child.poll() is not None:
+                raise AssertionError(f"child ended before it was killed: "
+                                     f"{child.stderr.read().decode()[-2000:]}")
+            if target.exists():
+                with np.load(target) as data:
+                    if data["history"].shape[0] >= windows:
+                        break
+            time.sleep(0.02)
+        else:
+            raise AssertionError("the child never wrote enough checkpointed windows")
+        os.kill(child.pid, signal.SIGKILL)
+    finally:
+        if child.poll() is None:
+            child.kill()
+        child.wait()
+        child.stderr.close()
+    assert child.returncode == -signal.SIGKILL
+    with np.load(target) as data:
+        return int(data["history"].shape[0])
+
+
+@pytest.fixture(scope="module")
+def ls_reference():
+    return generators.lubachevsky_stillinger(dist.monodisperse(64), **LS_ARGS)
+
+
+@pytest.fixture(scope="module")
+def mls_reference():
+    return generators.closest_jamming(mls_start(), **MLS_ARGS)
+
+
+def test_ls_killed_with_sigkill_resumes_bit_for_bit(tmp_path, ls_reference):
+    path = tmp_path / "ls_run"
+    saved = run_and_kill("ls", path, windows=5)
+    assert 5 <= saved < ls_reference.history.shape[0]  # killed mid-run, work was kept
+    resumed = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
+                                                checkpoint_every=0, **LS_ARGS)
+    assert resumed.extra["resumed"]
+    assert_same(resumed, ls_reference)
+    assert resumed.reduced_pressure >= 1e12
+    assert_no_overlap(resumed.packing)
+
+
+def test_mls_killed_with_sigkill_resumes_bit_for_bit(tmp_path, mls_reference):
+    path = tmp_path / "mls_run"
+    # late enough to be past the first pressure threshold (in the rate-decrease phase)
+    saved = run_and_kill("mls", path, windows=60)
+    assert 60 <= saved < mls_reference.history.shape[0]
+    resumed = generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
+    assert resumed.extra["resumed"]
+    assert_same(resumed, mls_reference)
+    assert resumed.status.startswith("jammed")
+    assert_no_overlap(resumed.packing)
+
+
+def test_finished_run_returns_from_its_checkpoint(tmp_path, ls_reference):
+    path = tmp_path / "done.npz"
+    first = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path, **LS_ARGS)
+    assert_same(first, ls_reference)
+    assert not first.extra["resumed"] and path.exists()
+    again = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path, **LS_ARGS)
+    assert again.extra["resumed"]
+    assert_same(again, ls_reference)
+    assert again.collisions == first.collisions  # nothing was recomputed
+
+
+def test_finished_mls_run_returns_from_its_checkpoint(tmp_path, mls_reference):
+    path = tmp_path / "mls_done.npz"
+    first = generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
+    again = generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
+    assert again.extra["resumed"]
+    assert_same(first, mls_reference)
+    assert_same(again, mls_reference)
+
+
+def test_ls_run_can_be_pushed_to_a_higher_pressure(tmp_path, ls_reference):
+    """A run stopped at p = 1e5 and continued to 1e12 is the run made at 1e12 directly."""
+    path = tmp_path / "staged"
+    low = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
+                                            **{**LS_ARGS, "target_pressure": 1e5})
+    assert 1e5 <= low.reduced_pressure < 1e12
+    high = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path, **LS_ARGS)
+    assert_same(high, ls_reference)
+
+
+def test_checkpoint_of_another_run_is_refused(tmp_path):
+    path = tmp_path / "other.npz"
+    generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
+                                      **{**LS_ARGS, "target_pressure": 1e3})
+    with pytest.raises(ValueError, match=r"checkpoint of another run; it differs in seed"):
+        generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
+                                          **{**LS_ARGS, "seed": 99})
+    with pytest.raises(ValueError, match="kind \\(checkpoint 'lubachevsky_stillinger'"):
+        generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
+
+
+def test_not_a_checkpoint_file_is_refused(tmp_path):
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"not a zip file at all")
+    with pytest.raises(ValueError, match="not a readable generator checkpoint"):
+        generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=garbage, **LS_ARGS)
+    foreign = tmp_path / "foreign.npz"
+    np.savez(foreign, positions=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="not a generator checkpoint"):
+        generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=foreign, **LS_ARGS)
+
+
+def test_bad_checkpoint_interval_is_refused(tmp_path):
+    with pytest.raises(ValueError, match="checkpoint_every"):
+        generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=tmp_path / "x",
+                                          checkpoint_every=-1, **LS_ARGS)
+
+
+def test_save_is_atomic_and_leaves_no_temporary_files(tmp_path):
+    saver = Checkpoint(tmp_path / "state", "test", {"a": 1}, every=0)
+    for k in range(5):
+        saver.save({"value": np.arange(k + 1.0)})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["state.npz"]
+    np.testing.assert_array_equal(saver.load()["value"], np.arange(5.0))
