@@ -1,0 +1,136 @@
+"""Critical exponents γ, θ_e, θ_ℓ from pooled gaps and forces, with their reference values.
+
+Each exponent comes from a power-law fit of a cumulative (`calippso.analysis.fits`):
+
+=========  ==========================  =====================  ==================  ==========
+name       distribution                cumulative             exponent            reference
+=========  ==========================  =====================  ==================  ==========
+gamma      g(h) ~ h^−γ (gaps)          Z(h) − z ~ h^(1−γ)     γ = 1 − slope       0.41269
+theta_e    P_e(f) ~ f^θ_e (extended)   G_e(f) ~ f^(1+θ_e)     θ_e = slope − 1     0.42311
+theta_l    P_ℓ(f) ~ f^θ_ℓ (localised)  G_ℓ(f) ~ f^(1+θ_ℓ)     θ_ℓ = slope − 1     0.17
+=========  ==========================  =====================  ==================  ==========
+
+Upper ends of the fit windows (`UPPER`): h ≤ 1e-2 for gaps, f ≤ 0.3 (mean force 1) for
+forces, chosen from the local slopes of the cumulatives of pooled d = 3 packings (N = 1024, LS
+starts at p = 1e5): above them the slope visibly bends away from the small-argument power law.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from ..result import JammingResult
+from .fits import PowerLawFit, fit_cumulative_power_law
+from .forces import pooled_forces
+from .gaps import DEFAULT_MAX_GAP, pooled_gaps
+from .sample import PooledSample
+
+__all__ = ["REFERENCE_EXPONENTS", "UPPER", "Exponent", "exponent_from_sample",
+           "critical_exponents"]
+
+#: Reference values (Charbonneau et al. 2014; θ_ℓ = 1 − 2γ from Lerner, Düring & Wyart 2013).
+REFERENCE_EXPONENTS: dict[str, float] = {"gamma": 0.41269, "theta_e": 0.42311,
+                                         "theta_l": 0.17}
+#: Default upper end of each fit window (gap h, or force in units of the mean force).
+UPPER: dict[str, float] = {"gamma": 1e-2, "theta_e": 0.3, "theta_l": 0.3}
+#: exponent = offset + sign × slope of the cumulative.
+_FROM_SLOPE: dict[str, tuple[float, float]] = {"gamma": (1.0, -1.0), "theta_e": (-1.0, 1.0),
+                                               "theta_l": (-1.0, 1.0)}
+
+
+@dataclass(frozen=True)
+class Exponent:
+    """A measured exponent with its bootstrap interval and the fit behind it.
+
+    Attributes
+    ----------
+    name : str
+        "gamma", "theta_e" or "theta_l".
+    value : float
+    interval : tuple of float
+        Bootstrap percentile interval (low, high).
+    reference : float
+        The value from the literature (`REFERENCE_EXPONENTS`).
+    fit : PowerLawFit
+        The fit of the cumulative (slope, window, points).
+    """
+
+    name: str
+    value: float
+    interval: tuple[float, float]
+    reference: float
+    fit: PowerLawFit
+
+    @property
+    def deviation(self) -> float:
+        """value − reference."""
+        return self.value - self.reference
+
+    def to_dict(self) -> dict:
+        """Plain numbers, for JSON."""
+        return {"value": self.value, "interval": list(self.interval),
+                "reference": self.reference, "window": [self.fit.lower, self.fit.upper],
+                "points_in_window": self.fit.n_points, "confidence": self.fit.confidence,
+                "bootstrap_resamples": self.fit.n_bootstrap,
+                "bootstrap_over": self.fit.resampling}
+
+
+def exponent_from_sample(name: str, sample: PooledSample, *, upper: float | None = None,
+                         **fit_options) -> Exponent:
+    """Fit the cumulative of `sample` and convert its slope into the exponent `name`.
+
+    Parameters
+    ----------
+    name : {"gamma", "theta_e", "theta_l"}
+    sample : PooledSample
+        Gaps (for "gamma") or forces normalised by the mean.
+    upper : float, optional
+        Upper end of the fit window (default `UPPER[name]`).
+    **fit_options
+        Passed to `fit_cumulative_power_law` (min_count, n_bootstrap, confidence, seed).
+    """
+    if name not in _FROM_SLOPE:
+        raise ValueError(f"name must be one of {tuple(_FROM_SLOPE)}, got {name!r}")
+    fit = fit_cumulative_power_law(sample, UPPER[name] if upper is None else upper,
+                                   **fit_options)
+    offset, sign = _FROM_SLOPE[name]
+    ends = sorted(offset + sign * s for s in fit.interval)
+    return Exponent(name, offset + sign * fit.slope, (ends[0], ends[1]),
+                    REFERENCE_EXPONENTS[name], fit)
+
+
+def critical_exponents(results: JammingResult | Iterable[JammingResult], *,
+                       max_gap: float = DEFAULT_MAX_GAP, rule: str = "weakest",
+                       upper: dict[str, float] | None = None,
+                       **fit_options) -> dict[str, Exponent]:
+    """γ, θ_e and θ_ℓ pooled over `results`.
+
+    Parameters
+    ----------
+    results : JammingResult or iterable of JammingResult
+    max_gap : float
+        Largest gap collected (must exceed the gap window's upper end).
+    rule : {"weakest", "all"}
+        Localisation rule (`calippso.analysis.forces.localized_contacts`).
+    upper : dict, optional
+        Upper ends of the fit windows, by exponent name (defaults: `UPPER`).
+    **fit_options
+        Passed to `fit_cumulative_power_law`.
+
+    Returns
+    -------
+    dict
+        {"gamma": Exponent, "theta_e": Exponent, "theta_l": Exponent}
+
+    Raises
+    ------
+    ValueError
+        Too few small gaps or forces for a fit (pool more packings).
+    """
+    uppers = {**UPPER, **(upper or {})}
+    samples = {"gamma": pooled_gaps(results, max_gap),
+               "theta_e": pooled_forces(results, "extended", rule),
+               "theta_l": pooled_forces(results, "localized", rule)}
+    return {name: exponent_from_sample(name, sample, upper=uppers[name], **fit_options)
+            for name, sample in samples.items()}

@@ -1,0 +1,126 @@
+"""`analyze`: every analysis of one packing or an ensemble, gathered once (the report's input)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..result import JammingResult
+from ._inputs import as_results
+from .exponents import UPPER, Exponent, exponent_from_sample
+from .forces import bucklers, pooled_forces
+from .gaps import DEFAULT_MAX_GAP, pooled_gaps
+from .sample import PooledSample
+from .structure import ContactStatistics, contact_statistics
+
+__all__ = ["Analysis", "analyze"]
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """Contacts, gaps, forces and exponents of a pooled set of packings.
+
+    Attributes
+    ----------
+    contacts : ContactStatistics
+    gaps : PooledSample
+        Non-contact gaps h ≤ `max_gap` between stable particles.
+    forces : dict of str to PooledSample
+        "all", "extended" and "localized" forces, normalised by the mean of each packing.
+    exponents : dict of str to Exponent
+        "gamma", "theta_e", "theta_l" (those that could be fitted).
+    exponent_errors : dict of str to str
+        Why an exponent could not be fitted (e.g. too few small forces in one small packing).
+    n_bucklers : int
+        Stable particles with d + 1 contacts, over all packings.
+    max_gap : float
+        Largest gap collected.
+    rule : str
+        Localisation rule.
+    """
+
+    contacts: ContactStatistics
+    gaps: PooledSample
+    forces: dict[str, PooledSample]
+    exponents: dict[str, Exponent]
+    exponent_errors: dict[str, str]
+    n_bucklers: int
+    max_gap: float
+    rule: str
+    wall_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def to_dict(self) -> dict:
+        """The summary as plain numbers (JSON-ready)."""
+        c = self.contacts
+        return {
+            "d": c.d,
+            "packings": c.n_packings,
+            "particles": c.n_particles,
+            "phi": {"mean": float(np.mean(c.phi)), "std": float(np.std(c.phi)),
+                    "min": float(np.min(c.phi)), "max": float(np.max(c.phi)),
+                    "values": c.phi.tolist()},
+            "mean_z_stable": c.mean_z,
+            "rattler_fraction": c.rattler_fraction,
+            "stable_particles": c.n_stable,
+            "contacts": c.n_contacts,
+            "isostatic_packings": c.n_isostatic,
+            "isostaticity_gaps": c.isostaticity_gaps.tolist(),
+            "bucklers": self.n_bucklers,
+            "buckler_fraction": self.n_bucklers / c.n_stable if c.n_stable else float("nan"),
+            "localized_forces": len(self.forces["localized"]),
+            "extended_forces": len(self.forces["extended"]),
+            "localization_rule": self.rule,
+            "max_gap": self.max_gap,
+            "gaps_collected": len(self.gaps),
+            "jam_wall_time_s": {"total": float(np.sum(self.wall_times)),
+                                "mean": float(np.mean(self.wall_times))
+                                if self.wall_times.size else float("nan")},
+            "exponents": {name: e.to_dict() for name, e in self.exponents.items()},
+            "exponent_errors": dict(self.exponent_errors),
+        }
+
+
+def analyze(results: JammingResult | Iterable[JammingResult], *,
+            max_gap: float = DEFAULT_MAX_GAP, rule: str = "weakest",
+            upper: dict[str, float] | None = None, **fit_options) -> Analysis:
+    """Analyse one packing, or pool an ensemble of packings of one dimension.
+
+    Parameters
+    ----------
+    results : JammingResult or iterable of JammingResult
+    max_gap : float
+        Largest gap h collected.
+    rule : {"weakest", "all"}
+        Localisation rule (`calippso.analysis.forces.localized_contacts`).
+    upper : dict, optional
+        Upper ends of the fit windows by exponent name (defaults:
+        `calippso.analysis.exponents.UPPER`).
+    **fit_options
+        Passed to `fit_cumulative_power_law` (min_count, n_bootstrap, confidence, seed).
+
+    Returns
+    -------
+    Analysis
+        An exponent whose fit window holds too few points is left out of `exponents`, with
+        the reason in `exponent_errors`.
+    """
+    items = as_results(results)
+    uppers = {**UPPER, **(upper or {})}
+    gaps = pooled_gaps(items, max_gap)
+    forces = {kind: pooled_forces(items, kind, rule) for kind in ("all", "extended", "localized")}
+    samples = {"gamma": gaps, "theta_e": forces["extended"], "theta_l": forces["localized"]}
+    exponents, errors = {}, {}
+    for name, sample in samples.items():
+        try:
+            exponents[name] = exponent_from_sample(name, sample, upper=uppers[name],
+                                                   **fit_options)
+        except ValueError as error:
+            errors[name] = str(error)
+    return Analysis(
+        contacts=contact_statistics(items), gaps=gaps, forces=forces, exponents=exponents,
+        exponent_errors=errors,
+        n_bucklers=int(sum(np.count_nonzero(bucklers(r)) for r in items)),
+        max_gap=float(max_gap), rule=rule,
+        wall_times=np.array([r.wall_time for r in items], dtype=np.float64))

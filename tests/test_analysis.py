@@ -1,0 +1,214 @@
+"""calippso.analysis: contact statistics, gaps, bucklers, force split and power-law fits."""
+
+from __future__ import annotations
+
+import json
+from importlib.resources import files
+
+import numpy as np
+import pytest
+
+import calippso
+from calippso import Packing
+from calippso.analysis import (PooledSample, analyze, bucklers, contact_statistics,
+                               exponent_from_sample, fit_cumulative_power_law, gaps,
+                               localized_contacts, normalized_forces, pooled_forces, pooled_gaps)
+from calippso.packing import minimum_image
+from calippso.result import JammingResult
+
+
+@pytest.fixture(scope="module")
+def jammed() -> JammingResult:
+    """The built-in LS packing (N = 512, d = 3) jammed once for the module (~5 s)."""
+    start = calippso.read(str(files("calippso") / "data" / "example_d3_n512_ls.npz"))
+    return calippso.jam(start)
+
+
+# --- contact statistics -------------------------------------------------------------------
+
+def test_contact_statistics_of_one_packing(jammed):
+    stats = contact_statistics(jammed)
+    stable = ~jammed.rattlers
+    assert stats.n_stable == stable.sum()
+    assert stats.mean_z == pytest.approx(2 * jammed.n_contacts / jammed.n_stable)
+    assert stats.contact_numbers.min() >= jammed.d + 1          # rattlers removed recursively
+    assert stats.contact_numbers.sum() == 2 * jammed.n_contacts
+    assert stats.isostaticity_gaps.tolist() == [0] and stats.n_isostatic == 1
+    # isostatic: N_c = d (N_s - 1) + 1, so z = 2d - 2(d - 1)/N_s
+    assert stats.mean_z == pytest.approx(2 * 3 - 2 * 2 / jammed.n_stable)
+    z, fraction = stats.histogram()
+    assert fraction.sum() == pytest.approx(1.0) and z.min() >= jammed.d + 1
+
+
+def test_pooling_adds_counts(jammed):
+    one, two = contact_statistics(jammed), contact_statistics([jammed, jammed])
+    assert two.n_packings == 2 and two.n_contacts == 2 * one.n_contacts
+    assert two.mean_z == pytest.approx(one.mean_z)
+    assert two.rattler_fraction == pytest.approx(one.rattler_fraction)
+    assert len(pooled_gaps([jammed, jammed])) == 2 * len(pooled_gaps(jammed))
+
+
+def _square_result() -> JammingResult:
+    """A 2-d result (4 disks on a square lattice) built by hand, for input checks."""
+    positions = np.array([[1.0, 1.0], [3.0, 1.0], [1.0, 3.0], [3.0, 3.0]])
+    packing = Packing(positions, np.ones(4), np.array([4.0, 4.0]))
+    return JammingResult(packing, np.zeros((0, 2), dtype=np.int64), np.zeros(0),
+                         np.ones(4, dtype=bool), False, "hand-made", 0)
+
+
+def test_bad_input_is_named(jammed):
+    with pytest.raises(ValueError, match="empty"):
+        contact_statistics([])
+    with pytest.raises(ValueError, match="different dimensions"):
+        analyze([jammed, _square_result()])
+    with pytest.raises(TypeError, match=r"results\[1\].*JammingResult"):
+        pooled_gaps([jammed, jammed.packing])
+    with pytest.raises(ValueError, match="max_gap"):
+        gaps(jammed, max_gap=0.0)
+    with pytest.raises(ValueError, match="rule"):
+        localized_contacts(jammed, rule="strongest")
+    with pytest.raises(ValueError, match="kind"):
+        pooled_forces(jammed, kind="weak")
+
+
+# --- gaps ----------------------------------------------------------------------------------
+
+def _gaps_by_brute_force(result: JammingResult, max_gap: float) -> np.ndarray:
+    """Every pair of stable non-contact particles with h ≤ max_gap, one row at a time."""
+    p = result.packing
+    contacts = {tuple(c) for c in result.contacts.tolist()}
+    found = []
+    for i in np.flatnonzero(~result.rattlers):
+        j = np.arange(i + 1, p.n)
+        j = j[~result.rattlers[j]]
+        r = minimum_image(p.positions[i] - p.positions[j], p.box)
+        h = np.linalg.norm(r, axis=1) / (0.5 * (p.diameters[i] + p.diameters[j])) - 1
+        found += [hk for jk, hk in zip(j, h) if hk <= max_gap and (i, jk) not in contacts]
+    return np.sort(found)
+
+
+def test_gaps_are_the_non_contact_pairs_of_stable_particles(jammed):
+    h = gaps(jammed, max_gap=0.05)
+    np.testing.assert_allclose(h, _gaps_by_brute_force(jammed, 0.05), rtol=0, atol=1e-13)
+    # contacts are touching (|h| ~ round-off); the gap list holds none of them
+    assert h.min() > 1e-9 and h.max() <= 0.05
+    assert np.all(np.diff(h) >= 0)
+
+
+def test_pooled_gap_cumulative_is_per_stable_particle(jammed):
+    sample = pooled_gaps(jammed, max_gap=0.1)
+    x, c = sample.cumulative()
+    assert c[-1] == pytest.approx(2 * len(sample) / jammed.n_stable)
+    centres, density = sample.density(bins_per_decade=4)
+    assert np.all(density > 0) and np.all(np.diff(centres) > 0)
+
+
+# --- forces and bucklers --------------------------------------------------------------------
+
+def test_every_force_is_positive_and_normalised(jammed):
+    f = normalized_forces(jammed)
+    assert f.shape == (jammed.n_contacts,)
+    assert np.all(f > 0) and f.mean() == pytest.approx(1.0, abs=1e-12)
+    assert len(pooled_forces(jammed)) == jammed.n_contacts
+
+
+def test_bucklers_have_d_plus_one_contacts(jammed):
+    b = bucklers(jammed)
+    assert b.any()
+    assert np.all(jammed.contact_numbers[b] == jammed.d + 1)
+    assert not np.any(b & jammed.rattlers)
+    others = ~b & ~jammed.rattlers
+    assert np.all(jammed.contact_numbers[others] > jammed.d + 1)
+
+
+def test_buckler_forces_follow_cramers_rule(jammed):
+    """Force balance on a buckler: f_k ∝ |det of the other d contact normals|."""
+    normals = jammed.contact_vectors / np.linalg.norm(jammed.contact_vectors, axis=1)[:, None]
+    for particle in np.flatnonzero(bucklers(jammed)):
+        edges = np.flatnonzero((jammed.contacts == particle).any(axis=1))
+        sign = np.where(jammed.contacts[edges, 0] == particle, 1.0, -1.0)
+        n = sign[:, None] * normals[edges]
+        minors = np.array([abs(np.linalg.det(np.delete(n, k, axis=0)))
+                           for k in range(len(edges))])
+        f = jammed.forces[edges]
+        np.testing.assert_allclose(f / f.max(), minors / minors.max(), atol=1e-8)
+        assert np.argmin(f) == np.argmin(minors)
+
+
+def test_localized_forces_are_the_weakest_of_each_buckler(jammed):
+    weakest = localized_contacts(jammed, "weakest")
+    everything = localized_contacts(jammed, "all")
+    assert np.all(everything[weakest])                 # "all" contains "weakest"
+    b = np.flatnonzero(bucklers(jammed))
+    assert b.size >= weakest.sum() >= b.size / 2        # a contact may be weakest of both ends
+    for particle in b:
+        edges = np.flatnonzero((jammed.contacts == particle).any(axis=1))
+        assert weakest[edges[np.argmin(jammed.forces[edges])]]
+        assert everything[edges].all()
+    touches_buckler = np.isin(jammed.contacts, b).any(axis=1)
+    np.testing.assert_array_equal(everything, touches_buckler)
+    local, extended = pooled_forces(jammed, "localized"), pooled_forces(jammed, "extended")
+    assert len(local) + len(extended) == jammed.n_contacts
+    np.testing.assert_allclose(np.sort(np.concatenate([local.values, extended.values])),
+                               np.sort(normalized_forces(jammed)))
+
+
+# --- fits ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("slope", [0.58731, 1.42311, 1.17])
+def test_fit_recovers_the_slope_of_synthetic_power_law_data(slope):
+    rng = np.random.default_rng(7)
+    x = rng.random(40000) ** (1.0 / slope)              # C(x) = x^slope on [0, 1]
+    fit = fit_cumulative_power_law(x, upper=0.3, n_bootstrap=200, seed=1)
+    assert fit.slope == pytest.approx(slope, abs=0.05)
+    assert fit.interval[0] < slope < fit.interval[1]
+    assert fit.interval[1] - fit.interval[0] < 0.15
+    assert fit.amplitude == pytest.approx(1.0, rel=0.15)
+    assert fit.resampling == "values" and fit.upper == 0.3
+    assert fit.lower == pytest.approx(np.sort(x)[9])     # window starts at the 10th value
+
+
+def test_fit_resamples_packings_when_many_are_pooled():
+    rng = np.random.default_rng(3)
+    parts = [(rng.random(2000) ** (1 / 0.6), 1000.0) for _ in range(10)]
+    sample = PooledSample.concatenate(parts)
+    fit = fit_cumulative_power_law(sample, upper=0.1, n_bootstrap=100)
+    assert fit.resampling == "packings" and sample.n_groups == 10
+    assert fit.slope == pytest.approx(0.6, abs=0.04)
+    assert fit.amplitude == pytest.approx(2.0, rel=0.2)   # 2000 values per 1000 normalisation
+    assert fit.interval[0] < 0.6 < fit.interval[1]
+
+
+def test_exponents_from_slopes():
+    rng = np.random.default_rng(5)
+    gaps_like = PooledSample.from_values(rng.random(40000) ** (1 / (1 - 0.41269)))
+    forces_like = PooledSample.from_values(rng.random(40000) ** (1 / 1.42311))
+    gamma = exponent_from_sample("gamma", gaps_like, upper=0.1, n_bootstrap=100)
+    theta = exponent_from_sample("theta_e", forces_like, n_bootstrap=100)
+    assert gamma.value == pytest.approx(0.41269, abs=0.03)
+    assert gamma.interval[0] < gamma.value < gamma.interval[1]
+    assert theta.value == pytest.approx(0.42311, abs=0.05)
+    assert theta.interval[0] < 0.42311 < theta.interval[1]
+    assert abs(theta.deviation) < 0.05 and theta.reference == 0.42311
+
+
+def test_fit_needs_enough_points():
+    with pytest.raises(ValueError, match="sample points"):
+        fit_cumulative_power_law(np.linspace(0.5, 1, 100), upper=0.1)
+    with pytest.raises(ValueError, match="upper"):
+        fit_cumulative_power_law(np.linspace(0.5, 1, 100), upper=0.0)
+
+
+# --- everything at once ------------------------------------------------------------------------
+
+def test_analyze_one_packing(jammed):
+    analysis = analyze(jammed, n_bootstrap=50)
+    summary = json.loads(json.dumps(analysis.to_dict()))
+    assert summary["d"] == 3 and summary["packings"] == 1
+    assert summary["isostatic_packings"] == 1
+    assert summary["bucklers"] == int(bucklers(jammed).sum())
+    assert summary["localized_forces"] + summary["extended_forces"] == jammed.n_contacts
+    assert set(summary["exponents"]) | set(summary["exponent_errors"]) == {
+        "gamma", "theta_e", "theta_l"}
+    for e in analysis.exponents.values():
+        assert e.interval[0] <= e.value <= e.interval[1]
