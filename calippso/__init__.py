@@ -21,6 +21,8 @@ _LAZY = {
     "load_result": ("calippso.result", "load_result"),
     "read": ("calippso.io", "read"),
     "write": ("calippso.io", "write"),
+    "analysis": ("calippso.analysis", None),  # the module itself
+    "report": ("calippso.reporting", "report"),
 }
 
 __all__ = ["Packing", "__version__", *_LAZY]
@@ -29,7 +31,8 @@ __all__ = ["Packing", "__version__", *_LAZY]
 def __getattr__(name: str):
     if name in _LAZY:
         module_name, attribute = _LAZY[name]
-        value = getattr(importlib.import_module(module_name), attribute)
+        module = importlib.import_module(module_name)
+        value = module if attribute is None else getattr(module, attribute)
         globals()[name] = value
         return value
     raise AttributeError(f"module 'calippso' has no attribute {name!r}")

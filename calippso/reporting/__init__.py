@@ -1,0 +1,84 @@
+"""Reports: a summary JSON, PNG figures and a Markdown page for one run or an ensemble.
+
+`report` is exposed as `calippso.report`. matplotlib (the optional extra ``plot``) is
+imported only when a figure is drawn, on the Agg backend.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..analysis import analyze
+from ..analysis._inputs import as_results
+from ..analysis.gaps import DEFAULT_MAX_GAP
+from ..result import JammingResult
+from .figures import plot_contact_numbers, plot_forces, plot_gaps, plot_history
+from .page import markdown
+from .summary import summary_dict, write_json
+
+__all__ = ["report", "plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history"]
+
+
+def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.PathLike, *,
+           title: str | None = None, max_gap: float = DEFAULT_MAX_GAP, rule: str = "weakest",
+           n_bootstrap: int = 1000, seed: int = 0, max_history_figures: int | None = None,
+           ) -> Path:
+    """Analyse one jammed packing or pool an ensemble, and write the report into `out_dir`.
+
+    Files written: ``summary.json`` (φ, z, rattlers, isostaticity, exponents with intervals,
+    one record per run), ``forces.png``, ``gaps.png``, ``contact_numbers.png``,
+    ``history/run_<k>.png`` (error against wall time, one per run) and ``report.md``.
+
+    Parameters
+    ----------
+    results : JammingResult or iterable of JammingResult
+        Packings of one dimension.
+    out_dir : str or PathLike
+        Folder (created if needed; files of an earlier report are overwritten).
+    title : str, optional
+        Page title (default: "Jammed packings, d = …").
+    max_gap : float
+        Largest gap collected (`calippso.analysis.gaps`).
+    rule : {"weakest", "all"}
+        Localisation rule (`calippso.analysis.forces.localized_contacts`).
+    n_bootstrap : int
+        Bootstrap resamples per exponent.
+    seed : int
+        Seed of the bootstrap.
+    max_history_figures : int, optional
+        Draw the history of at most this many runs (the first ones); default: all.
+
+    Returns
+    -------
+    Path
+        The path of ``report.md``.
+
+    Raises
+    ------
+    ValueError, TypeError
+        Empty input, mixed dimensions, or an element that is not a `JammingResult`.
+    ImportError
+        matplotlib is not installed.
+    """
+    items = as_results(results)
+    out = Path(out_dir)
+    (out / "history").mkdir(parents=True, exist_ok=True)
+    analysis = analyze(items, max_gap=max_gap, rule=rule, n_bootstrap=n_bootstrap, seed=seed)
+    figures = {"forces": plot_forces(analysis, out / "forces.png"),
+               "gaps": plot_gaps(analysis, out / "gaps.png"),
+               "contacts": plot_contact_numbers(analysis, out / "contact_numbers.png")}
+    drawn = items if max_history_figures is None else items[:max_history_figures]
+    histories = [plot_history(r, out / "history" / f"run_{k}.png",
+                              title=f"run {k}: N = {r.packing.n}, d = {r.d}, {r.solver}, "
+                                    f"{r.iterations} LPs, {r.wall_time:.1f} s")
+                 for k, r in enumerate(drawn) if r.history.shape[0]]
+    summary = summary_dict(analysis, items)
+    summary["figures"] = {**{k: p.name for k, p in figures.items()},
+                          "history": [f"history/{p.name}" for p in histories]}
+    write_json(summary, out / "summary.json")
+    page = out / "report.md"
+    page.write_text(markdown(summary, figures, histories,
+                             title or f"Jammed packings, d = {analysis.contacts.d}"))
+    return page

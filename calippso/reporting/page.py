@@ -1,0 +1,75 @@
+"""The report page (Markdown) that shows the summary figures and plots."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["markdown"]
+
+_NAMES = {"gamma": ("γ", "gaps, Z(h) − z ~ h^(1−γ)"),
+          "theta_e": ("θ_e", "extended forces, G_e(f) ~ f^(1+θ_e)"),
+          "theta_l": ("θ_ℓ", "localised forces, G_ℓ(f) ~ f^(1+θ_ℓ)")}
+
+
+def _fmt(value, digits: int = 4) -> str:
+    return "—" if value is None else f"{value:.{digits}g}"
+
+
+def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
+             title: str) -> str:
+    """The page, with figure links relative to the report folder.
+
+    Parameters
+    ----------
+    summary : dict
+        `summary.summary_dict` output.
+    figures : dict
+        "forces", "gaps", "contacts" → PNG paths (file names are used).
+    histories : list of Path
+        One PNG per run.
+    title : str
+    """
+    phi = summary["phi"]
+    lines = [
+        f"# {title}", "",
+        f"{summary['packings']} packing(s) of {summary['particles']} particles in total, "
+        f"d = {summary['d']}; localisation rule \"{summary['localization_rule']}\". "
+        "Numbers in `summary.json`.", "",
+        "| quantity | value |", "|---|---|",
+        f"| φ (mean ± std) | {phi['mean']:.6f} ± {phi['std']:.6f} |",
+        f"| φ range | [{phi['min']:.6f}, {phi['max']:.6f}] |",
+        f"| mean z over stable particles | {summary['mean_z_stable']:.5f} |",
+        f"| rattler fraction | {100 * summary['rattler_fraction']:.3f} % |",
+        f"| isostatic packings | {summary['isostatic_packings']} / {summary['packings']} |",
+        f"| bucklers (d + 1 contacts) | {summary['bucklers']} "
+        f"({100 * summary['buckler_fraction']:.2f} % of stable) |",
+        f"| localised / extended forces | {summary['localized_forces']} / "
+        f"{summary['extended_forces']} |",
+        f"| jam wall time (total, mean per run) | {summary['jam_wall_time_s']['total']:.1f} s, "
+        f"{summary['jam_wall_time_s']['mean']:.1f} s |",
+        "", "## Exponents", "",
+        "| exponent | fitted | 95 % interval | reference | window | points | bootstrap over |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, (symbol, what) in _NAMES.items():
+        e = summary["exponents"].get(name)
+        if e is None:
+            reason = summary["exponent_errors"].get(name, "not fitted")
+            lines.append(f"| {symbol} ({what}) | — | — | {summary['reference_exponents'][name]:g}"
+                         f" | not fitted: {reason} | | |")
+            continue
+        low, high = e["interval"]
+        lines.append(f"| {symbol} ({what}) | {_fmt(e['value'])} | [{_fmt(low)}, {_fmt(high)}] "
+                     f"| {e['reference']:g} | [{_fmt(e['window'][0], 3)}, "
+                     f"{_fmt(e['window'][1], 3)}] | {e['points_in_window']} "
+                     f"| {e['bootstrap_over']} |")
+    lines += ["", "## Distributions", "",
+              f"![forces]({figures['forces'].name})", "",
+              f"![gaps]({figures['gaps'].name})", "",
+              f"![contact numbers]({figures['contacts'].name})", ""]
+    if histories:
+        lines += ["## Error against wall time, per run", ""]
+        lines += [f"![run {k}]({path.parent.name}/{path.name})" for k, path in
+                  enumerate(histories)]
+        lines.append("")
+    return "\n".join(lines)
