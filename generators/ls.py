@@ -9,7 +9,7 @@ import numpy as np
 from calippso.neighbors import min_gap
 from calippso.packing import Packing
 
-from ._checks import (check_diameters, check_dimension, check_positive,
+from ._checks import (check_diameters, check_dimension, check_no_duplicates, check_positive,
                       remove_roundoff_overlap)
 from .checkpoint import Checkpoint, digest
 from ._progress import Progress
@@ -28,6 +28,8 @@ class GrowingSpheres:
     packing : Packing
         Start; if it overlaps, all diameters are first scaled down by one factor until the
         closest pair has a gap of 1e-9 σ (so a Poisson start begins at a tiny density).
+        Particles at the same place (closer than 1e-12 mean diameters) are refused with a
+        ValueError that names them.
     temperature : float
         Target kT (mass 1).
     seed : int
@@ -52,6 +54,7 @@ class GrowingSpheres:
         self.box = np.array(packing.box, dtype=np.float64)
         self.x = np.array(packing.wrapped().positions, dtype=np.float64)
         mean = packing.mean_diameter
+        check_no_duplicates(self.x, self.box, 1e-12 * mean)
         self.nominal = np.asarray(packing.diameters, dtype=np.float64) / mean
         gap, _ = min_gap(self.x, packing.diameters, self.box)
         self.start_shrink = min(1.0, (1.0 + gap) * (1.0 - 1e-9))

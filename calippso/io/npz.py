@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +18,11 @@ def read(path: Path) -> Packing:
             missing = [k for k in ("positions", "diameters", "box") if k not in data.files]
             if missing:
                 raise ValueError(f"{path}: not a calippso .npz file, missing keys {missing}")
-            return Packing(data["positions"], data["diameters"], data["box"])
-    except (OSError, EOFError) as error:
+            try:
+                return Packing(data["positions"], data["diameters"], data["box"])
+            except ValueError as error:
+                raise ValueError(f"{path}: {error}") from None
+    except (OSError, EOFError, zipfile.BadZipFile) as error:
         raise ValueError(f"{path}: unreadable .npz file ({error})") from None
 
 

@@ -48,7 +48,10 @@ def read(path: Path) -> Packing:
     theoretical = _field(nfo_text, "Theoretical Porosity", nfo)[0]
     final = _field(nfo_text, "Final Porosity", nfo)[0]
     scale = ((1.0 - final) / (1.0 - theoretical)) ** (1.0 / 3.0)
-    return Packing(records[:, :3], records[:, 3] * scale, box)
+    try:
+        return Packing(records[:, :3], records[:, 3] * scale, box)
+    except ValueError as error:
+        raise ValueError(f"{xyzd}: {error}") from None
 
 
 def write(packing: Packing, path: Path) -> Path:

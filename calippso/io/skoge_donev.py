@@ -65,13 +65,21 @@ def read(path: Path) -> Packing:
     body = lines[first:first + n]
     if len(body) < n:
         raise ValueError(f"{path}: truncated, {len(body)} coordinate lines where N = {n}")
+    positions = np.empty((n, d))
+    for k, line in enumerate(body):
+        values = line.split()[:d]
+        if len(values) < d:
+            raise ValueError(f"{path}: every coordinate line needs {d} numbers; the line of "
+                             f"particle {k} has {len(values)}: {line.strip()[:60]!r}")
+        try:
+            positions[k] = [float(v) for v in values]
+        except ValueError:
+            raise ValueError(f"{path}: non-numeric coordinates for particle {k}: "
+                             f"{line.strip()[:60]!r}") from None
     try:
-        positions = np.array([[float(v) for v in line.split()[:d]] for line in body])
-    except ValueError:
-        raise ValueError(f"{path}: non-numeric coordinates after line {first}") from None
-    if positions.shape != (n, d):
-        raise ValueError(f"{path}: every coordinate line needs {d} numbers")
-    return Packing(positions, diameters, box)
+        return Packing(positions, diameters, box)
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None
 
 
 def write(packing: Packing, path: Path) -> Path:

@@ -1,0 +1,229 @@
+"""Bad input: every kind gives an error that names the problem (API, readers, generators, CLI).
+
+Each case is one parametrised test: the call, the exception type and a regular expression
+that the message must match (the words a user needs to fix the input).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import calippso
+import generators
+from calippso import Packing, jam
+
+from configurations import random_sequential_addition
+
+GOOD = random_sequential_addition(16, 3, 0.2, seed=1)
+POS, DIAM, BOX = GOOD.positions, GOOD.diameters, GOOD.box
+
+
+def _with(array: np.ndarray, index, value) -> np.ndarray:
+    out = np.array(array, dtype=float)
+    out[index] = value
+    return out
+
+
+def _duplicated() -> np.ndarray:
+    positions = POS.copy()
+    positions[5] = positions[2]
+    return positions
+
+
+def _duplicated_by_a_period() -> np.ndarray:
+    positions = POS.copy()
+    positions[5] = positions[2] + BOX  # the same point one period away
+    return positions
+
+
+#: (id, arguments of Packing / jam, exception, message pattern)
+ARRAY_CASES = [
+    ("nan-position", (_with(POS, (0, 1), np.nan), DIAM, BOX), ValueError, r"positions contains 1 non-finite"),
+    ("inf-position", (_with(POS, (3, 0), np.inf), DIAM, BOX), ValueError, r"positions contains 1 non-finite"),
+    ("nan-diameter", (POS, _with(DIAM, 2, np.nan), BOX), ValueError, r"diameters contains 1 non-finite"),
+    ("inf-box", (POS, DIAM, _with(BOX, 1, np.inf)), ValueError, r"box contains 1 non-finite"),
+    ("positions-1d", (POS[:, 0], DIAM, BOX), ValueError, r"positions must have shape \(N, d\)"),
+    ("positions-3d", (POS[None], DIAM, BOX), ValueError, r"positions must have shape \(N, d\)"),
+    ("diameters-2d", (POS, DIAM[:, None], BOX), ValueError, r"diameters must have shape a 1-d array"),
+    ("dimension-1", (POS[:, :1], DIAM, BOX[0]), ValueError, r"dimension d must be at least 2, got d = 1"),
+    ("zero-diameter", (POS, _with(DIAM, 4, 0.0), BOX), ValueError, r"diameters must be > 0"),
+    ("negative-diameter", (POS, _with(DIAM, 4, -1.0), BOX), ValueError, r"diameters must be > 0.*smallest -1"),
+    ("zero-box", (POS, DIAM, _with(BOX, 0, 0.0)), ValueError, r"box sides must be > 0"),
+    ("negative-box", (POS, DIAM, -BOX), ValueError, r"box sides must be > 0"),
+    ("particle-wider-than-half-box", (POS, _with(DIAM, 0, 0.6 * BOX[0]), BOX), ValueError,
+     r"box too small: the largest diameter .* half the smallest box side"),
+    ("empty", (np.zeros((0, 3)), np.zeros(0), BOX), ValueError, r"the packing is empty"),
+    ("mismatched-lengths", (POS, DIAM[:-1], BOX), ValueError, r"diameters has 15 entries but positions has 16"),
+    ("box-sides-vs-dimension", (POS, DIAM, BOX[:2]), ValueError, r"box has 2 sides but positions are 3-dimensional"),
+    ("non-numeric-array", ([["a", "b", "c"]] * 16, DIAM, BOX), ValueError, r"positions must be numeric"),
+]
+
+
+@pytest.mark.parametrize("args, error, pattern", [c[1:] for c in ARRAY_CASES],
+                         ids=[c[0] for c in ARRAY_CASES])
+def test_packing_refuses(args, error, pattern):
+    with pytest.raises(error, match=pattern):
+        Packing(*args)
+
+
+@pytest.mark.parametrize("args, error, pattern", [c[1:] for c in ARRAY_CASES],
+                         ids=[c[0] for c in ARRAY_CASES])
+def test_jam_refuses_before_any_lp(args, error, pattern):
+    with pytest.raises(error, match=pattern):
+        jam(*args)
+
+
+def _overlapping(amount: float) -> Packing:
+    """Two particles alone in a box, overlapping by `amount` σ."""
+    positions = np.array([[1.0, 1.0, 1.0], [2.0 - amount, 1.0, 1.0]])
+    return Packing(positions, np.ones(2), np.full(3, 4.0))
+
+
+DUPLICATE = "overlapping particles in the input: 1 pair\\(s\\) overlap, the worst is \\(2, 5\\) with gap h = .*-1.000e\\+00"
+
+
+@pytest.mark.parametrize("call, error, pattern", [
+    (lambda: jam(_overlapping(1e-3)), ValueError,
+     r"overlapping particles in the input: 1 pair\(s\) overlap, the worst is \(0, 1\) with gap h = .*-1\.000e-03"),
+    (lambda: jam(_duplicated(), DIAM, BOX), ValueError, DUPLICATE),
+    (lambda: jam(_duplicated_by_a_period(), DIAM, BOX), ValueError, DUPLICATE),
+    (lambda: jam(GOOD, solver="gurobi"), ValueError, r"unknown solver 'gurobi': choose one of highs, clarabel, cvxpy"),
+    (lambda: jam(GOOD, tol_gammma=1e-9), TypeError, r"unknown jam option\(s\) \['tol_gammma'\]"),
+    (lambda: jam(GOOD, max_iters=0), ValueError, r"max_iters must be a positive integer"),
+    (lambda: jam(GOOD, tol_gamma=-1.0), ValueError, r"tol_gamma must be > 0"),
+    (lambda: jam(GOOD, GOOD.diameters, GOOD.box), TypeError, r"either a Packing, or positions"),
+    (lambda: jam(GOOD.positions), TypeError, r"diameters and box are required"),
+], ids=["real-overlap", "duplicated-particles", "duplicated-one-period-away", "unknown-solver", "unknown-option", "max-iters-zero", "negative-tolerance",
+        "packing-and-arrays", "positions-only"])
+def test_jam_refuses_bad_arguments(call, error, pattern):
+    with pytest.raises(error, match=pattern):
+        call()
+
+
+# ----------------------------------------------------------------------------- files
+
+SKOGE_HEADER = "3\n4 1\n4\n0.5\n3 0 0 0 3 0 0 0 3\nT T T\n"
+
+
+def _write(tmp: Path, name: str, content: str | bytes) -> Path:
+    path = tmp / name
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(content)
+    return path
+
+
+FILE_CASES = [
+    ("missing-file", "absent.dat", None, FileNotFoundError, r"no such file"),
+    ("unknown-format", "packing.foo", "1 2 3\n", ValueError, r"unknown file format '.foo'"),
+    ("empty-file", "empty.dat", "", ValueError, r"too short for Skoge-Donev"),
+    ("non-numeric-dimension", "word.dat", "three\n4 1\n4\n0.5\n", ValueError, r"line 1: expected the dimension"),
+    ("dimension-1-file", "d1.dat", "1\n4 1\n4\n0.5\n", ValueError, r"line 1: expected the dimension \(an integer ≥ 2\)"),
+    ("non-numeric-header", "hdr.dat", "3\nfour 1\n4\n0.5\n", ValueError, r"line 2: expected numbers"),
+    ("non-numeric-coordinates", "coords.dat",
+     SKOGE_HEADER + "0 0 0\n1 1 1\n2 x 2\n0.5 2.5 1\n", ValueError, r"non-numeric coordinates"),
+    ("truncated-file", "short.dat", SKOGE_HEADER + "0 0 0\n1 1 1\n", ValueError,
+     r"truncated, 2 coordinate lines where N = 4"),
+    ("short-coordinate-line", "cols.dat", SKOGE_HEADER + "0 0 0\n1 1\n2 2 2\n0.5 2.5 1\n",
+     ValueError, r"every coordinate line needs 3 numbers"),
+    ("species-mismatch", "species.dat", "3\n4 1\n3\n0.5\n3 0 0 0 3 0 0 0 3\nT T T\n", ValueError,
+     r"species counts \[3\] .* do not match N = 4"),
+    ("sheared-box", "shear.dat", "3\n4 1\n4\n0.5\n3 0.1 0 0 3 0 0 0 3\nT T T\n", ValueError,
+     r"only rectangular \(diagonal\) boxes"),
+    ("binary-as-text", "binary.dat", bytes(range(256)) * 4, ValueError, r"not a text file"),
+    ("nan-in-file", "nan.dat", SKOGE_HEADER + "0 0 0\n1 1 1\nnan 2 2\n0.5 2.5 1\n", ValueError,
+     r"positions contains 1 non-finite"),
+    ("negative-diameter-file", "neg.dat", "3\n4 1\n4\n-0.5\n3 0 0 0 3 0 0 0 3\nT T T\n"
+     "0 0 0\n1 1 1\n2 2 2\n0.5 2.5 1\n", ValueError, r"diameters must be > 0"),
+    ("garbage-npz", "garbage.npz", b"PK\x03\x04 this is not a zip archive", ValueError, r"unreadable \.npz"),
+    ("truncated-xyzd", "packing.xyzd", b"\x00" * 40, ValueError, r"not a whole number of \(x, y, z, d\) records"),
+]
+
+
+@pytest.mark.parametrize("name, content, error, pattern", [c[1:] for c in FILE_CASES],
+                         ids=[c[0] for c in FILE_CASES])
+def test_read_refuses(tmp_path, name, content, error, pattern):
+    path = tmp_path / name if content is None else _write(tmp_path, name, content)
+    if name.endswith(".xyzd"):
+        _write(tmp_path, "generation.conf", "Particles count: 1\nPacking size: 3 3 3\n")
+        _write(tmp_path, "packing.nfo", "Theoretical Porosity: 0.5\nFinal Porosity: 0.5\n")
+    with pytest.raises(error, match=pattern):
+        calippso.read(path)
+
+
+def test_npz_without_packing_keys_is_refused(tmp_path):
+    path = tmp_path / "other.npz"
+    np.savez(path, weights=np.ones(3))
+    with pytest.raises(ValueError, match=r"missing keys \['positions', 'diameters', 'box'\]"):
+        calippso.read(path)
+
+
+# ----------------------------------------------------------------------------- generators
+
+@pytest.mark.parametrize("call, pattern", [
+    (lambda: generators.lubachevsky_stillinger(np.ones(8), d=1), r"dimension d must be an integer >= 2"),
+    (lambda: generators.lubachevsky_stillinger(np.ones(8)), r"dimension d must be an integer >= 2, got d = None"),
+    (lambda: generators.lubachevsky_stillinger([1.0, np.nan], d=3), r"diameters contain NaN or inf"),
+    (lambda: generators.lubachevsky_stillinger([1.0, -1.0], d=3), r"diameters must be > 0"),
+    (lambda: generators.lubachevsky_stillinger([], d=3), r"non-empty 1-d array"),
+    (lambda: generators.lubachevsky_stillinger(np.ones(64), d=3, growth_rate=-1), r"growth_rate must be a finite number > 0"),
+    (lambda: generators.lubachevsky_stillinger(np.ones(64), d=3, target_pressure=np.nan), r"target_pressure must be a finite number > 0"),
+    (lambda: generators.lubachevsky_stillinger(GOOD, d=2), r"d = 2 contradicts the packing's dimension 3"),
+    (lambda: generators.poisson(np.ones(4), 3, phi=0.5), r"too few particles for phi = 0.5"),
+    (lambda: generators.poisson(np.ones(4), 3, phi=1.5), r"phi must lie in \(0, 1\)"),
+    (lambda: generators.closest_jamming(np.ones(8)), r"packing must be a calippso.Packing"),
+    (lambda: generators.lubachevsky_stillinger(Packing(_duplicated(), DIAM, BOX)),
+     r"duplicated particles: particles 2 and 5"),
+    (lambda: generators.closest_jamming(Packing(_duplicated_by_a_period(), DIAM, BOX)),
+     r"duplicated particles: particles 2 and 5"),
+    (lambda: generators.closest_jamming(GOOD, initial_rate=1e-5, final_rate=1e-3), r"final_rate 0.001 exceeds initial_rate 1e-05"),
+], ids=["ls-d1", "ls-no-d", "ls-nan", "ls-negative", "ls-empty", "ls-rate", "ls-pressure",
+        "ls-dimension-clash", "poisson-box", "poisson-phi", "mls-not-packing", "ls-duplicates",
+        "mls-duplicates", "mls-rates"])
+def test_generators_refuse(call, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        call()
+
+
+# ----------------------------------------------------------------------------- CLI
+
+def _cli() -> list[str] | None:
+    """How to call the command line: the console script, or None when there is no CLI yet."""
+    try:
+        import calippso.cli  # noqa: F401
+    except ImportError:
+        return None
+    return [sys.executable, "-m", "calippso"]
+
+
+CLI = _cli()
+needs_cli = pytest.mark.skipif(CLI is None, reason="calippso.cli does not exist in this tree")
+
+
+@needs_cli
+@pytest.mark.parametrize("make, pattern", [
+    (lambda tmp: tmp / "absent.dat", r"no such file|does not exist"),
+    (lambda tmp: _write(tmp, "packing.foo", "1 2 3\n"), r"unknown file format"),
+    (lambda tmp: _write(tmp, "short.dat", SKOGE_HEADER + "0 0 0\n"), r"truncated"),
+    (lambda tmp: _write(tmp, "coords.dat", SKOGE_HEADER + "0 0 0\n1 1 1\n2 x 2\n0.5 2.5 1\n"),
+     r"non-numeric coordinates"),
+    (lambda tmp: _write(tmp, "nan.dat", SKOGE_HEADER + "0 0 0\n1 1 1\nnan 2 2\n0.5 2.5 1\n"),
+     r"non-finite"),
+    (lambda tmp: _write(tmp, "garbage.npz", b"PK\x03\x04 not a zip"), r"unreadable \.npz"),
+], ids=["missing", "unknown-format", "truncated", "non-numeric", "nan", "garbage-npz"])
+def test_cli_reports_bad_files(tmp_path, make, pattern):
+    path = make(tmp_path)
+    done = subprocess.run([*CLI, "jam", str(path), "-o", str(tmp_path / "out.npz")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode in (1, 2), done.stderr
+    assert "Traceback" not in done.stderr
+    message = done.stderr.strip().splitlines()[-1]
+    assert message.startswith("error: ")
+    assert __import__("re").search(pattern, message), message
