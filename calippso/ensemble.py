@@ -1,0 +1,348 @@
+"""Ensembles: many independent generate → jam → analyse runs, on local processes or Dask.
+
+Every packing is one task, `run_one(spec, seed, out_dir)`, which writes
+``out_dir/packing_<seed>.npz`` atomically as soon as it is jammed (the full `JammingResult`
+plus the start's keys ``seed``, ``start_phi``, ``start_reduced_pressure``,
+``generation_wall_time``). The calling process rewrites ``out_dir/summary.csv`` (one row
+per packing, `COLUMNS`) after each finished task. A re-run skips every seed whose file
+exists (resume); a task that raises is recorded as a "failed" row, with its traceback in
+``packing_<seed>.error.txt``, and the other tasks go on (a failed seed is retried by the
+next run).
+
+Workers share Numba's on-disk cache of the generators: Numba writes its cache files through
+a temporary file and a rename, so concurrent workers never read half a file; at worst
+several cold workers compile the same function once each.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import csv
+import io
+import multiprocessing
+import os
+import time
+import traceback
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["COLUMNS", "EnsembleSpec", "SUMMARY", "run", "run_on_scheduler", "run_one",
+           "summary_record"]
+
+#: Name of the summary table written in `out_dir`.
+SUMMARY = "summary.csv"
+
+#: Columns of the summary table, in order.
+COLUMNS = ("seed", "state", "file", "n", "d", "start_phi", "start_reduced_pressure",
+           "generation_wall_time", "phi", "converged", "iterations", "isostatic",
+           "isostaticity_gap", "n_contacts", "n_stable", "rattler_fraction", "n_bucklers",
+           "force_balance", "wall_time", "solver", "status", "error")
+
+PROTOCOLS = ("ls", "fb", "mls", "poisson")
+DISTRIBUTIONS = ("monodisperse", "bidisperse", "lognormal")
+
+
+@dataclass(frozen=True)
+class EnsembleSpec:
+    """What every packing of an ensemble is (only the seed differs).
+
+    Attributes
+    ----------
+    protocol : {"ls", "fb", "mls", "poisson"}
+        How the start is made: Lubachevsky–Stillinger to `pressure`, force-biased, closest
+        jamming (MLS) from random centres, or random centres at packing fraction `phi`
+        scaled to no overlap (jamming from a low-density start).
+    n, d : int
+        Particles and dimension.
+    distribution : {"monodisperse", "bidisperse", "lognormal"}
+        Diameters: equal; 50:50 with size ratio `ratio`; log-normal with std `std`.
+    ratio, std : float
+        Parameters of the distribution.
+    pressure : float
+        LS target reduced pressure.
+    phi : float
+        Packing fraction of the "poisson" start (after removing overlaps it is lower).
+    solver : str
+        LP backend of `calippso.jam`.
+    jam_options : dict
+        Further keyword arguments of `calippso.jam`.
+    """
+
+    protocol: str = "ls"
+    n: int = 128
+    d: int = 3
+    distribution: str = "monodisperse"
+    ratio: float = 1.4
+    std: float = 0.1
+    pressure: float = 1e5
+    phi: float = 0.3
+    solver: str = "highs"
+    jam_options: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.protocol not in PROTOCOLS:
+            raise ValueError(f"protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
+        if self.distribution not in DISTRIBUTIONS:
+            raise ValueError(f"distribution must be one of {DISTRIBUTIONS}, got {self.distribution!r}")
+        if int(self.n) < 2 or int(self.d) < 2:
+            raise ValueError(f"need n >= 2 and d >= 2, got n = {self.n}, d = {self.d}")
+        for name in ("ratio", "std", "pressure", "phi"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+
+    @classmethod
+    def of(cls, spec: "EnsembleSpec | dict") -> "EnsembleSpec":
+        """An `EnsembleSpec` from itself or from a dict of its fields."""
+        if isinstance(spec, cls):
+            return spec
+        unknown = set(spec) - set(cls.__dataclass_fields__)
+        if unknown:
+            raise ValueError(f"unknown ensemble spec keys {sorted(unknown)}")
+        return cls(**spec)
+
+
+def _diameters(spec: EnsembleSpec, seed: int) -> np.ndarray:
+    from generators import diameters
+
+    if spec.distribution == "bidisperse":
+        return diameters.bidisperse(spec.n, ratio=spec.ratio, seed=seed)
+    if spec.distribution == "lognormal":
+        return diameters.lognormal(spec.n, std=spec.std, seed=seed)
+    return diameters.monodisperse(spec.n)
+
+
+def generate_start(spec: EnsembleSpec, seed: int):
+    """Make the start of one packing; returns (packing, reduced pressure, seconds)."""
+    import generators
+
+    from .neighbors import min_gap
+
+    sizes = _diameters(spec, seed)
+    if spec.protocol == "ls":
+        made = generators.lubachevsky_stillinger(sizes, d=spec.d, target_pressure=spec.pressure,
+                                                 seed=seed)
+    elif spec.protocol == "fb":
+        made = generators.force_biased(sizes, spec.d, seed=seed)
+    elif spec.protocol == "mls":
+        made = generators.closest_jamming(generators.poisson(sizes, spec.d, spec.phi, seed), seed=seed)
+    else:
+        began = time.perf_counter()
+        packing = generators.poisson(sizes, spec.d, spec.phi, seed)
+        gap, _ = min_gap(packing.positions, packing.diameters, packing.box)
+        packing = packing.scaled_to_phi(packing.phi * min(1.0, (1 + gap) * (1 - 1e-9)) ** spec.d)
+        return packing, float("nan"), time.perf_counter() - began
+    return made.packing, float(made.reduced_pressure), float(made.wall_time)
+
+
+def summary_record(result) -> dict:
+    """The numbers that describe one `JammingResult` (JSON- and CSV-ready)."""
+    from .analysis.forces import bucklers
+
+    return {"n": result.packing.n, "d": result.d, "phi": result.phi,
+            "converged": bool(result.converged), "iterations": int(result.iterations),
+            "isostatic": bool(result.isostatic), "isostaticity_gap": int(result.isostaticity_gap),
+            "n_contacts": result.n_contacts, "n_stable": result.n_stable,
+            "rattler_fraction": result.rattler_fraction,
+            "n_bucklers": int(np.count_nonzero(bucklers(result))),
+            "force_balance": float(result.force_balance), "wall_time": float(result.wall_time),
+            "solver": result.solver, "status": result.status}
+
+
+def packing_file(out_dir: Path, seed: int) -> Path:
+    """Where the jammed packing of `seed` is stored."""
+    return Path(out_dir) / f"packing_{seed:06d}.npz"
+
+
+def _row_from_file(path: Path, seed: int) -> dict:
+    from .result import JammingResult
+
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {key: data[key] for key in data.files}
+    row = {"seed": seed, "state": "done", "file": path.name,
+           **summary_record(JammingResult.from_arrays(arrays))}
+    for key in ("start_phi", "start_reduced_pressure", "generation_wall_time"):
+        row[key] = float(arrays[key]) if key in arrays else float("nan")
+    return row
+
+
+def run_one(spec: EnsembleSpec | dict, seed: int, out_dir: str | os.PathLike) -> dict:
+    """Generate, jam and analyse the packing of one seed; write it; return its summary row.
+
+    Never raises for a failing packing: the row then has ``state="failed"`` and the error,
+    and the traceback is written to ``packing_<seed>.error.txt``.
+    """
+    import calippso
+
+    from .result import save_npz_atomic
+
+    out_dir = Path(out_dir)
+    path = packing_file(out_dir, seed)
+    error_file = path.with_suffix(".error.txt")
+    try:
+        spec = EnsembleSpec.of(spec)
+        start, pressure, seconds = generate_start(spec, seed)
+        result = calippso.jam(start, solver=spec.solver, **spec.jam_options)
+        extra = {"seed": np.array(seed), "start_phi": np.array(start.phi),
+                 "start_reduced_pressure": np.array(pressure),
+                 "generation_wall_time": np.array(seconds)}
+        save_npz_atomic(path, {**result.to_arrays(), **extra})
+        error_file.unlink(missing_ok=True)
+        return _row_from_file(path, seed)
+    except Exception as error:  # a failing packing is recorded, the others go on
+        out_dir.mkdir(parents=True, exist_ok=True)
+        error_file.write_text(traceback.format_exc())
+        return _failed_row(seed, error)
+
+
+def _failed_row(seed: int, error: BaseException) -> dict:
+    message = " ".join(f"{type(error).__name__}: {error}".split())
+    return {"seed": seed, "state": "failed", "error": message}
+
+
+def write_summary(out_dir: Path, rows: Iterable[dict]) -> Path:
+    """Write the summary table (rows sorted by seed) atomically; return its path."""
+    from .io._atomic import atomic_path
+
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=COLUMNS, restval="", extrasaction="ignore")
+    writer.writeheader()
+    for row in sorted(rows, key=lambda row: row["seed"]):
+        writer.writerow(row)
+    path = Path(out_dir) / SUMMARY
+    with atomic_path(path) as temporary:
+        temporary.write_text(text.getvalue())
+    return path
+
+
+def _seeds(seeds: int | Iterable[int] | None, n_packings: int) -> list[int]:
+    if seeds is None:
+        seeds = 0
+    if isinstance(seeds, (int, np.integer)):
+        seeds = range(int(seeds), int(seeds) + n_packings)
+    seeds = [int(seed) for seed in seeds]
+    if len(seeds) != n_packings:
+        raise ValueError(f"{len(seeds)} seeds for {n_packings} packings")
+    if len(set(seeds)) != len(seeds) or min(seeds, default=0) < 0:
+        raise ValueError("seeds must be distinct non-negative integers")
+    return seeds
+
+
+def _is_dask(executor) -> bool:
+    return type(executor).__module__.split(".")[0] == "distributed"
+
+
+def run(spec: EnsembleSpec | dict, n_packings: int, *, seeds: int | Sequence[int] | None = None,
+        out_dir: str | os.PathLike, executor=None, workers: int | None = None,
+        progress: bool = False) -> list[dict]:
+    """Run an ensemble: one generate → jam → analyse task per seed, resuming earlier runs.
+
+    Parameters
+    ----------
+    spec : EnsembleSpec or dict
+        What each packing is.
+    n_packings : int
+        Number of packings.
+    seeds : int or sequence of int, optional
+        The seeds (one per packing), or the first of consecutive seeds (default 0).
+    out_dir : str or PathLike
+        Folder for ``packing_<seed>.npz`` files and ``summary.csv``.
+    executor : concurrent.futures.Executor or dask.distributed.Client, optional
+        Where the tasks run. Default: a pool of `workers` local processes.
+    workers : int, optional
+        Size of the default local pool (default: the number of cores).
+    progress : bool
+        Show a tqdm bar over packings.
+
+    Returns
+    -------
+    list of dict
+        One row per packing (`COLUMNS`), in seed order; ``state`` is "done" or "failed".
+        The same rows are in ``out_dir/summary.csv``.
+    """
+    spec = EnsembleSpec.of(spec)
+    if int(n_packings) < 1:
+        raise ValueError(f"n_packings must be >= 1, got {n_packings}")
+    seeds = _seeds(seeds, int(n_packings))
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows = {}
+    for seed in seeds:
+        path = packing_file(out_dir, seed)
+        if path.is_file():
+            try:
+                rows[seed] = _row_from_file(path, seed)
+            except (OSError, ValueError, KeyError):
+                path.unlink()  # unreadable: run this seed again
+    pending = [seed for seed in seeds if seed not in rows]
+    write_summary(out_dir, rows.values())
+    if pending:
+        bar = _bar(progress, len(seeds), len(rows))
+        owned = executor is None
+        if owned:
+            executor = concurrent.futures.ProcessPoolExecutor(
+                max_workers=min(workers or os.cpu_count() or 1, len(pending)),
+                mp_context=multiprocessing.get_context("spawn"))
+        try:
+            for seed, row in _completed(executor, spec, pending, out_dir):
+                rows[seed] = row
+                write_summary(out_dir, rows.values())
+                if bar is not None:
+                    bar.update(1)
+        finally:
+            if owned:
+                executor.shutdown(cancel_futures=True)
+            if bar is not None:
+                bar.close()
+    return [rows[seed] for seed in seeds]
+
+
+def _completed(executor, spec: EnsembleSpec, seeds: list[int], out_dir: Path):
+    """Yield (seed, row) as tasks finish; a task lost with its worker gives a failed row."""
+    if _is_dask(executor):
+        from distributed import as_completed
+
+        futures = {executor.submit(run_one, asdict(spec), seed, str(out_dir), pure=False): seed
+                   for seed in seeds}
+    else:
+        from concurrent.futures import as_completed
+
+        futures = {executor.submit(run_one, asdict(spec), seed, str(out_dir)): seed
+                   for seed in seeds}
+    for future in as_completed(list(futures)):
+        seed = futures[future]
+        try:
+            yield seed, future.result()
+        except Exception as error:  # the worker died: record it, go on with the others
+            yield seed, _failed_row(seed, error)
+
+
+def _bar(enabled: bool, total: int, initial: int):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, desc="packings", unit=" packing")
+
+
+def run_on_scheduler(spec: EnsembleSpec | dict, n_packings: int, *, address: str,
+                     seeds: int | Sequence[int] | None = None, out_dir: str | os.PathLike,
+                     progress: bool = False) -> list[dict]:
+    """`run` on the Dask cluster whose scheduler is at `address` (needs ``distributed``).
+
+    `out_dir` must be a folder that the workers and this process share (the same machine,
+    or a shared file system).
+    """
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ValueError("--scheduler needs dask.distributed: pip install 'calippso[ensemble]'") from None
+    try:
+        client = Client(address, timeout="10s")
+    except OSError as error:
+        raise ValueError(f"cannot reach the Dask scheduler at {address}: {error}") from None
+    with client:
+        return run(spec, n_packings, seeds=seeds, out_dir=out_dir, executor=client,
+                   progress=progress)
