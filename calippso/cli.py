@@ -260,21 +260,27 @@ def generate_spherocylinders(n, aspect_ratio, contraction_rate, seed, output, ou
 
 
 class LPProgress:
-    """A tqdm bar over LPs showing √Γ − 1, max |s| and the contact count (a `jam` callback)."""
+    """A tqdm bar over LPs showing √Γ − 1, max |s| and the contact count (a `jam` callback).
+
+    The bar appears with the first LP, so input rejected before any LP prints no bar.
+    """
 
     def __init__(self, enabled: bool, desc: str = "LP") -> None:
+        self._enabled = enabled
+        self._desc = desc
         self._bar = None
-        if enabled:
-            from tqdm.auto import tqdm
-
-            self._bar = tqdm(desc=desc, unit=" LP", file=sys.stderr)
 
     def __call__(self, record: dict) -> None:
-        if self._bar is not None:
-            self._bar.set_postfix({"sqrt(G)-1": f"{record['sqrt_gamma_minus_1']:.1e}",
-                                   "max|s|": f"{record['max_displacement']:.1e}",
-                                   "contacts": record["n_contacts"]}, refresh=False)
-            self._bar.update(1)
+        if not self._enabled:
+            return
+        if self._bar is None:
+            from tqdm.auto import tqdm
+
+            self._bar = tqdm(desc=self._desc, unit=" LP", file=sys.stderr)
+        self._bar.set_postfix({"sqrt(G)-1": f"{record['sqrt_gamma_minus_1']:.1e}",
+                               "max|s|": f"{record['max_displacement']:.1e}",
+                               "contacts": record["n_contacts"]}, refresh=False)
+        self._bar.update(1)
 
     def close(self) -> None:
         if self._bar is not None:
