@@ -329,19 +329,19 @@ def _bar(enabled: bool, total: int, initial: int):
 
 def run_on_scheduler(spec: EnsembleSpec | dict, n_packings: int, *, address: str,
                      seeds: int | Sequence[int] | None = None, out_dir: str | os.PathLike,
-                     progress: bool = False) -> list[dict]:
+                     progress: bool = False, timeout: float = 10.0) -> list[dict]:
     """`run` on the Dask cluster whose scheduler is at `address` (needs ``distributed``).
 
     `out_dir` must be a folder that the workers and this process share (the same machine,
-    or a shared file system).
+    or a shared file system). `timeout` is the time allowed to connect, in seconds.
     """
     try:
         from distributed import Client
     except ImportError:
         raise ValueError("--scheduler needs dask.distributed: pip install 'calippso[ensemble]'") from None
     try:
-        client = Client(address, timeout="10s")
-    except OSError as error:
+        client = Client(address, timeout=f"{timeout}s")
+    except (OSError, TimeoutError) as error:
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {error}") from None
     with client:
         return run(spec, n_packings, seeds=seeds, out_dir=out_dir, executor=client,
