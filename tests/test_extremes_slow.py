@@ -1,0 +1,85 @@
+"""The extreme matrix, slow part (run with ``pytest -m slow tests/test_extremes_slow.py``).
+
+Real p = 1e12 packings from ../shared/data with every backend (cases 1 and 9), larger random
+starts far from jamming in d = 3, 4, 5 (case 2), a small d = 5 box whose default cutoff would
+exceed half the box (case 5), LS p = 1e12 inputs in d = 4, 5, and the N = 10000 input with
+round-off overlaps (case 7). Run times are listed in docs/stability.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import calippso
+from calippso import jam
+from calippso.neighbors import min_gap
+
+from configurations import overlap_free, random_sequential_addition
+from test_extremes import assert_jammed, ls_packing, phi_j
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.mark.parametrize("solver", ["highs", "clarabel", "cvxpy"])
+def test_skoge_donev_p1e12_every_backend(shared_data, solver):
+    start = calippso.read(shared_data / "skoge_donev_N1000_d3_p1e12.dat")
+    assert start.n == 1000 and overlap_free(start) >= 0
+    result = jam(start, solver=solver)
+    assert_jammed(result)
+    assert result.solver == solver
+    assert result.phi == pytest.approx(0.638386, abs=2e-4)
+
+
+def test_packing_generation_p1e12_folder(shared_data):
+    start = calippso.read(shared_data / "mono_N1000_fba1e-3_then_ls1e-2_seed11")
+    result = jam(start)
+    assert_jammed(result)
+    assert result.phi >= start.phi
+
+
+def test_polydisperse_p1e12_folder(shared_data):
+    start = calippso.read(shared_data / "lognormal0.2_N1000_fba1e-3_then_ls1e-2_seed13")
+    result = jam(start)
+    assert_jammed(result)
+
+
+def test_roundoff_overlaps_in_a_real_n10000_input(shared_data):
+    start = calippso.read(shared_data / "mono_N10000_fba1e-3_then_ls1e-2_seed21")
+    gap, overlapping = min_gap(start.positions, start.diameters, start.box)
+    assert overlapping > 0 and gap > -1e-13
+    result = jam(start)
+    assert_jammed(result)
+
+
+@pytest.mark.parametrize("d, n", [(3, 512), (4, 256), (5, 128)])
+def test_far_from_jamming_larger(d, n):
+    start = random_sequential_addition(n, d, 0.3 * phi_j(d), seed=10 + d)
+    result = jam(start)
+    assert_jammed(result)
+    assert 0.9 * phi_j(d) < result.phi < 1.05 * phi_j(d)
+
+
+@pytest.mark.parametrize("solver", ["clarabel", "cvxpy"])
+def test_far_from_jamming_d5_other_backends(solver):
+    start = random_sequential_addition(64, 5, 0.3 * phi_j(5), seed=15)
+    result = jam(start, solver=solver)
+    assert_jammed(result)
+
+
+def test_small_box_in_five_dimensions():
+    """d = 5, N = 256: the box side (~2.7 σ at jamming) is below twice the reference cutoff
+    4R = 2σ, so pairs must come from the step bound, not from a fixed cutoff."""
+    start = random_sequential_addition(256, 5, 0.3 * phi_j(5), seed=5)
+    result = jam(start)
+    assert_jammed(result)
+    sigma = result.packing.diameters.max()
+    assert 2 * sigma > 0.5 * result.packing.box.min()   # the reference cutoff would not fit
+
+
+@pytest.mark.parametrize("d, n", [(4, 256), (5, 256)])
+def test_ls_p1e12_in_high_dimension(d, n):
+    start = ls_packing(n, d, seed=d)
+    result = jam(start)
+    assert_jammed(result)
+    assert result.phi >= start.phi
