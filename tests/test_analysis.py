@@ -184,7 +184,7 @@ def test_exponents_from_slopes():
     gaps_like = PooledSample.from_values(rng.random(40000) ** (1 / (1 - 0.41269)))
     forces_like = PooledSample.from_values(rng.random(40000) ** (1 / 1.42311))
     gamma = exponent_from_sample("gamma", gaps_like, upper=0.1, n_bootstrap=100)
-    theta = exponent_from_sample("theta_e", forces_like, n_bootstrap=100)
+    theta = exponent_from_sample("theta_e", forces_like, upper=0.3, n_bootstrap=100)
     assert gamma.value == pytest.approx(0.41269, abs=0.03)
     assert gamma.interval[0] < gamma.value < gamma.interval[1]
     assert theta.value == pytest.approx(0.42311, abs=0.05)

@@ -10,9 +10,10 @@ theta_e    P_e(f) ~ f^θ_e (extended)   G_e(f) ~ f^(1+θ_e)     θ_e = slope −
 theta_l    P_ℓ(f) ~ f^θ_ℓ (localised)  G_ℓ(f) ~ f^(1+θ_ℓ)     θ_ℓ = slope − 1     0.17
 =========  ==========================  =====================  ==================  ==========
 
-Upper ends of the fit windows (`UPPER`): h ≤ 1e-2 for gaps, f ≤ 0.3 (mean force 1) for
+Upper ends of the fit windows (`UPPER`): h ≤ 1e-2 for gaps, f ≤ 0.1 (mean force 1) for
 forces, chosen from the local slopes of the cumulatives of pooled d = 3 packings (N = 1024, LS
-starts at p = 1e5): above them the slope visibly bends away from the small-argument power law.
+starts at p = 1e5): above 0.1 the slope of the force cumulatives bends visibly away from its
+small-f value; the slope of the gap cumulative shows no such bend below h = 0.1.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ __all__ = ["REFERENCE_EXPONENTS", "UPPER", "Exponent", "exponent_from_sample",
 REFERENCE_EXPONENTS: dict[str, float] = {"gamma": 0.41269, "theta_e": 0.42311,
                                          "theta_l": 0.17}
 #: Default upper end of each fit window (gap h, or force in units of the mean force).
-UPPER: dict[str, float] = {"gamma": 1e-2, "theta_e": 0.3, "theta_l": 0.3}
+UPPER: dict[str, float] = {"gamma": 1e-2, "theta_e": 0.1, "theta_l": 0.1}
 #: exponent = offset + sign × slope of the cumulative.
 _FROM_SLOPE: dict[str, tuple[float, float]] = {"gamma": (1.0, -1.0), "theta_e": (-1.0, 1.0),
                                                "theta_l": (-1.0, 1.0)}
