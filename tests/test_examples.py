@@ -1,0 +1,40 @@
+"""Every example runs at its tiny size and says what it should."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+CASES = [
+    (["ls_jam_2d_bidisperse.py"], "isostatic"),
+    (["ls_jam.py", "--d", "3"], "isostatic"),
+    (["ls_jam.py", "--d", "4"], "isostatic"),
+    (["ls_jam.py", "--d", "5"], "isostatic"),
+    (["random_start.py"], "isostatic"),
+    (["polydisperse_lognormal.py"], "isostatic"),
+    (["mls_closest_jamming.py"], "CALiPPSO moved phi"),
+    (["spherocylinders.py", "--out", "{tmp}"], "nematic order"),
+    (["force_gap_report.py", "--out", "{tmp}/report"], "report.md"),
+    (["ensemble.py", "--out", "{tmp}/ensemble"], "isostatic = True"),
+]
+
+
+def test_every_example_is_tested():
+    tested = {argv[0] for argv, _ in CASES}
+    assert tested == {path.name for path in EXAMPLES.glob("*.py")}
+
+
+@pytest.mark.parametrize("argv, expected", CASES, ids=[" ".join(a) for a, _ in CASES])
+def test_example_runs_tiny(tmp_path, argv, expected):
+    if argv[0] == "force_gap_report.py":
+        pytest.importorskip("matplotlib")
+    command = [sys.executable, str(EXAMPLES / argv[0]), *(a.format(tmp=tmp_path) for a in argv[1:]),
+               "--tiny"]
+    run = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert expected in run.stdout, run.stdout[-2000:]
