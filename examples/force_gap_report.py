@@ -1,6 +1,6 @@
 """Jam an LS packing and write its report: force and gap distributions, contact numbers.
 
-    python examples/force_gap_report.py                       # N = 1024, d = 3
+    python examples/force_gap_report.py                       # N = 512, d = 3
     python examples/force_gap_report.py --tiny --out /tmp/r   # N = 64
 """
 
@@ -13,7 +13,7 @@ import generators
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=1024, help="number of spheres")
+    parser.add_argument("--n", type=int, default=512, help="number of spheres")
     parser.add_argument("--tiny", action="store_true", help="N = 64, for a quick check")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("report"), help="report folder")

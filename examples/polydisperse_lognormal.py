@@ -1,6 +1,6 @@
 """Jam a polydisperse packing: log-normal diameters (std 0.2, mean 1), force-biased start.
 
-    python examples/polydisperse_lognormal.py          # N = 1024, d = 3
+    python examples/polydisperse_lognormal.py          # N = 512, d = 3
     python examples/polydisperse_lognormal.py --tiny   # N = 64
 """
 
@@ -12,7 +12,7 @@ import generators
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=1024, help="number of spheres")
+    parser.add_argument("--n", type=int, default=512, help="number of spheres")
     parser.add_argument("--std", type=float, default=0.2, help="standard deviation of the diameters")
     parser.add_argument("--tiny", action="store_true", help="N = 64, for a quick check")
     parser.add_argument("--seed", type=int, default=1)
