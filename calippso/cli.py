@@ -11,6 +11,7 @@ result is still written).
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import sys
@@ -84,6 +85,7 @@ def stdout_to_stderr() -> Iterator[None]:
 def output_options(command: Callable) -> Callable:
     """Add ``--quiet`` and ``--json`` to a command (passed on as ``out: Output``)."""
 
+    @functools.wraps(command)
     def wrapper(*args, quiet: bool, as_json: bool, **kwargs):
         out = Output(quiet, as_json)
         with stdout_to_stderr():
@@ -93,8 +95,6 @@ def output_options(command: Callable) -> Callable:
             raise NotConverged(record.get("status", ""))
         return record
 
-    wrapper.__name__ = command.__name__
-    wrapper.__doc__ = command.__doc__
     wrapper = click.option("--json", "as_json", is_flag=True,
                            help="Print a JSON summary on stdout instead of text.")(wrapper)
     return click.option("--quiet", "-q", is_flag=True, help="No progress bars.")(wrapper)
@@ -371,10 +371,12 @@ def convert(source, target, out):
     import calippso
     from .io import SUFFIXES, read_result
 
-    obj = calippso.read(source)
-    if SUFFIXES.get(source.suffix.lower()) in ("npz", "hdf5"):
-        with contextlib.suppress(ValueError):
+    obj = None
+    if SUFFIXES.get(source.suffix.lower()) in ("npz", "hdf5") and source.is_file():
+        with contextlib.suppress(ValueError):  # not a result file: read it as a packing
             obj = read_result(source)
+    if obj is None:
+        obj = calippso.read(source)
     written = calippso.write(obj, target)
     packing = getattr(obj, "packing", obj)
     kind = "result" if obj is not packing else "packing"
