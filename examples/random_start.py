@@ -3,7 +3,7 @@
 No compression at all before CALiPPSO; the LPs do all the work (more of them than from a
 compressed start), and phi_J comes out slightly lower than from an LS start.
 
-    python examples/random_start.py          # N = 512, d = 3
+    python examples/random_start.py          # N = 256, d = 3
     python examples/random_start.py --tiny   # N = 48
 """
 
@@ -16,7 +16,7 @@ from calippso.neighbors import min_gap
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=512, help="number of spheres")
+    parser.add_argument("--n", type=int, default=256, help="number of spheres")
     parser.add_argument("--d", type=int, default=3, help="dimension")
     parser.add_argument("--tiny", action="store_true", help="N = 48, for a quick check")
     parser.add_argument("--seed", type=int, default=1)
