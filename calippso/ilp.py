@@ -24,6 +24,7 @@ from .contacts import (contact_mask, force_balance, isostaticity_gap, polish_for
 from .errors import JammingError, SolverError
 from .lp import LinearProgram, build_lp, largest_safe_step, select_pairs
 from .neighbors import NeighborSearch, Pairs
+from .newton import refine_isostatic
 from .packing import Packing, wrap
 from .result import JammingResult, history_from_records
 from .settings import JamSettings
@@ -34,6 +35,9 @@ __all__ = ["jam", "initial_step_bound", "next_step_bound"]
 #: Bound on displacements in the final clean-up LP (mean diameters); at a jammed state the
 #: solution is ~0 and the bound is inactive.
 CLEANUP_STEP = 1e-3
+#: A pair outside the contact network may overlap by at most this relative gap at a Newton
+#: solution (round-off); more means the network is not the jammed one.
+NEWTON_OVERLAP_TOLERANCE = 1e-12
 
 
 def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: float = 1e-12,
@@ -164,6 +168,24 @@ class _Step:
     def normalization(self) -> float:
         return float(self.solution.duals @ self.lp.gamma_coefficients)
 
+    def network(self) -> "_Network":
+        pairs, rows = self.lp.pairs, self.contact_rows
+        return _Network(pairs.i[rows], pairs.j[rows], self.forces, self.rattlers,
+                        self.normalization, self.solution.solver, from_lp=True)
+
+
+@dataclass(eq=False)
+class _Network:
+    """Contacts between stable particles and their forces f = μ/2 (LP normalisation)."""
+
+    i: np.ndarray
+    j: np.ndarray
+    forces: np.ndarray
+    rattlers: np.ndarray
+    normalization: float
+    solver: str
+    from_lp: bool
+
 
 def _solution_problem(lp: LinearProgram, solution: LPSolution) -> str | None:
     """Why a backend's answer cannot be used, or None when it passes the checks."""
@@ -200,11 +222,17 @@ class _Jammer:
         self.records: list[dict] = []
         self.notes: list[str] = []
         self.solver_name = settings.solver
+        self.failed_networks: set[int] = set()
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
         self._check_input_overlaps()
         self.step = initial_step_bound(self.search, settings)
 
     # ----------------------------------------------------------------- helpers
+    @property
+    def lps_solved(self) -> int:
+        """LPs solved so far (history records other than the Newton stage)."""
+        return sum(record["stage"] != "newton" for record in self.records)
+
     def packing(self) -> Packing:
         """The current configuration in the caller's units."""
         return Packing(self.positions * self.scale, self.diameters * self.scale,
@@ -258,11 +286,11 @@ class _Jammer:
             problem = _solution_problem(lp, solution)
             if problem is None:
                 if (name, bound) != attempts[0]:
-                    self.notes.append(f"LP {len(self.records) + 1} needed a retry ({name}, "
+                    self.notes.append(f"LP {self.lps_solved + 1} needed a retry ({name}, "
                                       f"bound {bound:.1e}) after: {'; '.join(failures)}")
                 return self._analyse(lp, solution, stable)
             failures.append(f"{name} (bound {bound:.1e}): {problem}")
-        raise self._fail(f"every LP backend failed at LP {len(self.records) + 1}: "
+        raise self._fail(f"every LP backend failed at LP {self.lps_solved + 1}: "
                          + "; ".join(failures))
 
     def _analyse(self, lp: LinearProgram, solution: LPSolution,
@@ -288,8 +316,9 @@ class _Jammer:
         return _Step(lp, solution, rows, rattlers, forces, balance, max_displacement,
                      max_contacting, float(np.count_nonzero(~rattlers)) / self.n)
 
-    def _record(self, step: _Step, min_gap: float) -> dict:
+    def _record(self, step: _Step, min_gap: float, stage: str = "lp") -> dict:
         record = {
+            "stage": stage,
             "wall_time": time.perf_counter() - self.start,
             "solver_time": step.solution.seconds,
             "sqrt_gamma_minus_1": float(np.sqrt(1.0 + step.solution.gamma) - 1.0),
@@ -310,9 +339,10 @@ class _Jammer:
 
     def _print(self, record: dict) -> None:
         if len(self.records) == 1:
-            print(f"{'LP':>4} {'rows':>8} {'sqrtG-1':>9} {'max|s|':>9} {'bound':>8} {'Nc':>7} "
+            print(f"{'#':>4} {'stage':>7} {'rows':>8} {'sqrtG-1':>9} {'max|s|':>9} {'bound':>8} {'Nc':>7} "
                   f"{'iso':>5} {'balance':>8} {'min gap':>9} {'phi':>12} {'LP s':>7} {'total s':>8}")
-        print(f"{len(self.records):4d} {record['rows']:8d} {record['sqrt_gamma_minus_1']:9.2e} "
+        print(f"{len(self.records):4d} {record['stage']:>7} {record['rows']:8d} "
+              f"{record['sqrt_gamma_minus_1']:9.2e} "
               f"{record['max_displacement']:9.2e} {record['step_bound']:8.1e} "
               f"{record['n_contacts']:7d} {record['isostaticity_gap']:5d} "
               f"{record['force_balance']:8.1e} {record['min_gap']:9.2e} {record['phi']:12.9f} "
@@ -324,8 +354,9 @@ class _Jammer:
         forced = np.zeros((0, 2), dtype=np.int64)
         converged = False
         stopped = False
-        step_result: _Step | None = None
-        while len(self.records) < settings.max_iters:
+        network: _Network | None = None
+        verifying = False
+        while self.lps_solved < settings.max_iters:
             bound = largest_safe_step(self.search, self.step)
             if bound < settings.min_step * 1e-3:
                 raise self._fail("box too small: even a vanishing step would need pairs "
@@ -345,80 +376,161 @@ class _Jammer:
                 new = np.column_stack([close.i[outside], close.j[outside]])
                 forced = np.unique(np.concatenate([forced, new]), axis=0)
                 self.notes.append(f"{int(outside.sum())} pair(s) outside the LP overlapped "
-                                  f"after LP {len(self.records) + 1}; re-solved with them")
+                                  f"after LP {self.lps_solved + 1}; re-solved with them")
                 continue
             self.positions, self.diameters, self.search = positions, diameters, search
             min_gap = float(close.gaps.min()) if len(close) else float("inf")
             record = self._record(step_result, min_gap)
-            sqrt_gamma_minus_1 = record["sqrt_gamma_minus_1"]
-            converged = (sqrt_gamma_minus_1 < settings.tol_gamma
+            network = step_result.network()
+            converged = (record["sqrt_gamma_minus_1"] < settings.tol_gamma
                          and step_result.max_displacement < settings.tol_s
                          and step_result.max_displacement < 0.5 * bound)
-            if self.callback is not None and self.callback(
-                    {**record, "iteration": len(self.records), "packing": self.packing()}):
-                stopped = True
+            if verifying:
+                verifying = False
+                if converged:
+                    self.notes.append("an LP at the Newton solution confirmed convergence")
+                else:
+                    self.notes.append("the LP at the Newton solution did not confirm "
+                                      "convergence; the loop went on")
+            if self._stop_requested(record):
+                stopped, converged = True, False
                 break
             if converged:
                 break
             self.step = next_step_bound(bound, step_result, settings)
-        return self._finish(step_result, converged, stopped)
+            if (settings.newton and record["isostaticity_gap"] == 0 and record["n_contacts"]
+                    and step_result.max_displacement < settings.newton_start):
+                refined = self._newton(network)
+                if refined is not None:
+                    network = refined
+                    if self._stop_requested(self.records[-1]):
+                        stopped = True
+                        break
+                    if not settings.verify_newton:
+                        converged = True
+                        break
+                    verifying, self.step = True, CLEANUP_STEP
+        if network is None:
+            raise self._fail(f"no LP was solved (max_iters = {settings.max_iters})")
+        return self._finish(network, converged, stopped)
+
+    def _stop_requested(self, record: dict) -> bool:
+        return self.callback is not None and bool(self.callback(
+            {**record, "iteration": self.lps_solved, "packing": self.packing()}))
+
+    # ----------------------------------------------------------------- Newton stage
+    def _newton(self, network: _Network) -> _Network | None:
+        """Solve the contact equations of an isostatic network; None unless certified.
+
+        Certified means: every force positive and no other pair overlapping beyond
+        `NEWTON_OVERLAP_TOLERANCE` (see `calippso.newton`). A network that failed once is not
+        tried again. On success the configuration moves
+        to the certified jamming point and a history record (stage "newton") is added.
+        """
+        order = np.sort(network.i * self.n + network.j)
+        key = hash(order.tobytes())
+        if key in self.failed_networks:
+            return None
+        start = time.perf_counter()
+        refined = refine_isostatic(self.positions, self.diameters, self.box, network.i,
+                                   network.j, ~network.rattlers)
+        if refined is None:
+            self.failed_networks.add(key)
+            return None
+        search = NeighborSearch(refined.positions, refined.diameters, self.box)
+        close = search.pairs_within(float(refined.diameters.max()) * (1.0 + 1e-6))
+        is_contact = np.isin(close.i * self.n + close.j, order)
+        others = close.gaps[~is_contact]
+        overlapping = others.size and others.min() < -NEWTON_OVERLAP_TOLERANCE
+        if overlapping or not refined.positive:
+            self.failed_networks.add(key)
+            return None
+        self.positions, self.diameters, self.search = (refined.positions, refined.diameters,
+                                                       search)
+        current = search.pairs_of(network.i, network.j)
+        balance = force_balance(self.n, current.i, current.j,
+                                current.vectors / current.distances[:, None], refined.forces,
+                                ~network.rattlers)
+        weights = current.sigma**2 / current.distances
+        n_stable = int(self.n - network.rattlers.sum())
+        self.records.append({
+            "stage": "newton",
+            "wall_time": time.perf_counter() - self.start,
+            "solver_time": time.perf_counter() - start,
+            "sqrt_gamma_minus_1": refined.sqrt_gamma_minus_1,
+            "max_displacement": refined.max_displacement,
+            "rows": int(network.i.shape[0]),
+            "step_bound": float("nan"),
+            "n_contacts": int(network.i.shape[0]),
+            "isostaticity_gap": isostaticity_gap(int(network.i.shape[0]), n_stable, self.d),
+            "force_balance": balance,
+            "min_gap": float(close.gaps.min()) if len(close) else float("inf"),
+            "phi": self.packing().phi,
+        })
+        if self.settings.verbose:
+            self._print(self.records[-1])
+        self.notes.append(f"contact equations solved by Newton ({refined.iterations} "
+                          f"iterations, residual {refined.residual:.0e}) after "
+                          f"{self.lps_solved} LPs; certified by positive forces and no "
+                          f"overlap")
+        return _Network(network.i, network.j, refined.forces, network.rattlers,
+                        float(refined.forces @ weights), network.solver, from_lp=False)
 
     # ----------------------------------------------------------------- final forces
-    def _finish(self, last: _Step, converged: bool, stopped: bool) -> JammingResult:
+    def _finish(self, network: _Network, converged: bool, stopped: bool) -> JammingResult:
         settings = self.settings
-        pairs = last.lp.pairs
-        rows = last.contact_rows
-        current = self.search.pairs_of(pairs.i[rows], pairs.j[rows])
+        current = self.search.pairs_of(network.i, network.j)
         balance = force_balance(self.n, current.i, current.j,
-                                current.vectors / current.distances[:, None], last.forces,
-                                ~last.rattlers)
-        final = last
-        if balance > settings.balance_tolerance:
-            stable = ~last.rattlers
-            fixed = last.rattlers.copy()
+                                current.vectors / current.distances[:, None], network.forces,
+                                ~network.rattlers)
+        if balance > settings.balance_tolerance and network.from_lp and converged:
+            refined = self._newton(network) if settings.newton else None
+            if refined is not None:
+                network, balance = refined, self.records[-1]["force_balance"]
+        if balance > settings.balance_tolerance and network.from_lp:
+            stable = ~network.rattlers
+            fixed = network.rattlers.copy()
             if stable.any():
                 fixed[np.flatnonzero(stable)[0]] = True
-            final = self._solve(self.search, CLEANUP_STEP, fixed, stable=stable)
-            self._record(final, self.records[-1]["min_gap"])
-            balance = final.balance
-            if final.max_displacement > 0.5 * CLEANUP_STEP:
+            cleanup = self._solve(self.search, CLEANUP_STEP, fixed, stable=stable)
+            self._record(cleanup, self.records[-1]["min_gap"], stage="cleanup")
+            network, balance = cleanup.network(), cleanup.balance
+            if cleanup.max_displacement > 0.5 * CLEANUP_STEP:
                 self.notes.append("the force clean-up LP found a floppy motion: the packing "
                                   "is not rigid")
-        fpairs = final.lp.pairs
-        rows = final.contact_rows
-        forces = final.forces
-        if balance > settings.balance_tolerance and rows.size:
-            forces, balance = self._polished(final, forces, balance)
-        contacts = np.column_stack([fpairs.i[rows], fpairs.j[rows]]).astype(np.int64)
+        forces = network.forces
+        if balance > settings.balance_tolerance and forces.size:
+            forces, balance = self._polished(network, balance)
+        contacts = np.column_stack([network.i, network.j]).astype(np.int64)
         order = np.lexsort((contacts[:, 1], contacts[:, 0]))
         forces = forces[order]
         mean_force = forces.mean() if forces.size else 1.0
         self._remove_roundoff_overlaps()
-        packing = self.packing()
-        n_stable = int(self.n - final.rattlers.sum())
-        gap = isostaticity_gap(rows.shape[0], n_stable, self.d)
-        status = self._status(converged, stopped, gap)
+        n_stable = int(self.n - network.rattlers.sum())
+        gap = isostaticity_gap(contacts.shape[0], n_stable, self.d)
         return JammingResult(
-            packing=packing, contacts=contacts[order], forces=forces / mean_force,
-            rattlers=final.rattlers.copy(), converged=converged, status=status,
-            iterations=len(self.records), history=history_from_records(self.records),
+            packing=self.packing(), contacts=contacts[order], forces=forces / mean_force,
+            rattlers=network.rattlers.copy(), converged=converged,
+            status=self._status(converged, stopped, gap),
+            iterations=self.lps_solved,
+            history=history_from_records(self.records),
             wall_time=time.perf_counter() - self.start, force_balance=balance,
-            dual_normalization=final.normalization, solver=final.solution.solver)
+            dual_normalization=network.normalization, solver=network.solver)
 
-    def _polished(self, final: _Step, forces: np.ndarray, balance: float) -> tuple[np.ndarray, float]:
+    def _polished(self, network: _Network, balance: float) -> tuple[np.ndarray, float]:
         """Forces refined by least squares on the equilibrium equations, if that helps."""
-        pairs, rows = final.lp.pairs, final.contact_rows
-        geometry = self.search.pairs_of(pairs.i[rows], pairs.j[rows])
+        geometry = self.search.pairs_of(network.i, network.j)
         normals = geometry.vectors / geometry.distances[:, None]
-        weights = 2.0 * geometry.sigma**2 / (2.0 * geometry.distances)
-        polished = polish_forces(self.n, geometry.i, geometry.j, normals, weights, forces)
+        weights = geometry.sigma**2 / geometry.distances
+        polished = polish_forces(self.n, geometry.i, geometry.j, normals, weights,
+                                 network.forces)
         new_balance = force_balance(self.n, geometry.i, geometry.j, normals, polished,
-                                    ~final.rattlers)
+                                    ~network.rattlers)
         if np.all(polished > 0) and new_balance < balance:
             self.notes.append(f"forces polished by least squares (balance {balance:.1e} -> "
                               f"{new_balance:.1e})")
             return polished, new_balance
-        return forces, balance
+        return network.forces, balance
 
     def _remove_roundoff_overlaps(self) -> None:
         close = self.search.pairs_within(float(self.diameters.max()) * (1.0 + 1e-6))
@@ -437,11 +549,11 @@ class _Jammer:
     def _status(self, converged: bool, stopped: bool, gap: int) -> str:
         last = self.records[-1]
         if converged:
-            head = f"Jammed: converged after {len(self.records)} LPs"
+            head = f"Jammed: converged after {self.lps_solved} LPs"
         elif stopped:
-            head = f"Stopped by the callback after {len(self.records)} LPs"
+            head = f"Stopped by the callback after {self.lps_solved} LPs"
         else:
-            head = f"Not converged after {len(self.records)} LPs (max_iters)"
+            head = f"Not converged after {self.lps_solved} LPs (max_iters)"
         tail = "isostatic" if gap == 0 else f"isostaticity gap {gap:+d}"
         sentence = (f"{head} (sqrt(Gamma)-1 = {last['sqrt_gamma_minus_1']:.1e}, "
                     f"max|s| = {last['max_displacement']:.1e}); {tail}.")

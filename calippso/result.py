@@ -18,7 +18,7 @@ wall_time                   () float64       seconds from the call to the verifi
 force_balance               () float64       max_i |Σ_j f_ij n_ij| / mean force (stable i)
 dual_normalization          () float64       Σ λ_ij σ_ij² over contacts (1 up to round-off)
 solver                      () str           backend name
-history_<column>            (iterations,)    one entry per LP, see `HISTORY_COLUMNS`
+history_<column>            (records,)       one entry per stage, see `HISTORY_COLUMNS`
 ==========================  ===============  ===============================================
 """
 
@@ -35,8 +35,10 @@ from .packing import Packing
 
 __all__ = ["JammingResult", "load_result", "HISTORY_COLUMNS", "empty_history"]
 
-#: Columns of `JammingResult.history` (a numpy structured array, one record per LP).
-HISTORY_COLUMNS: dict[str, tuple[type, str]] = {
+#: Columns of `JammingResult.history` (a numpy structured array, one record per stage:
+#: every LP, the Newton stage if it ran, and the force clean-up LP if one was needed).
+HISTORY_COLUMNS: dict[str, tuple[object, str]] = {
+    "stage": ("U8", "'lp', 'newton' (contact equations solved and certified) or 'cleanup'"),
     "wall_time": (np.float64, "seconds since the call to jam, at the end of this iteration"),
     "solver_time": (np.float64, "seconds spent inside the LP solver for this iteration"),
     "sqrt_gamma_minus_1": (np.float64, "√Γ* − 1, the relative diameter growth of this LP"),
@@ -89,7 +91,8 @@ class JammingResult:
     iterations : int
         Number of LPs solved (including a final force clean-up LP, if one was needed).
     history : ndarray, structured
-        One record per LP; fields are `HISTORY_COLUMNS`. `history["phi"]` is a column.
+        One record per LP, plus one for the Newton stage if it ran; fields are
+        `HISTORY_COLUMNS`. `history["phi"]` is a column.
     wall_time : float
         Seconds from the call to `jam` to the verified result.
     force_balance : float

@@ -51,6 +51,15 @@ class JamSettings:
         Primal and dual feasibility tolerances passed to the solver (rows are in mean diameters).
     balance_tolerance : float
         A final force clean-up LP is solved when the force balance is worse than this.
+    newton : bool
+        Once an LP's contact network is isostatic, solve its contact equations by Newton's
+        method and certify the result (`calippso.newton`), instead of more LPs.
+    newton_start : float
+        ... once the LP's largest displacement of a stable particle is below this (mean
+        diameters): earlier networks are rarely the jammed one.
+    verify_newton : bool
+        After a certified Newton stage, solve one more LP at the final configuration and
+        continue the loop unless it meets the convergence criteria.
     pin : bool
         Fix one particle's displacement to remove the d translational zero modes.
     verbose : bool
@@ -72,6 +81,9 @@ class JamSettings:
     overlap_tolerance: float = 1e-10
     feasibility_tolerance: float = 1e-10
     balance_tolerance: float = 1e-12
+    newton: bool = True
+    newton_start: float = 1e-4
+    verify_newton: bool = False
     pin: bool = True
     verbose: bool = False
 
@@ -79,7 +91,8 @@ class JamSettings:
         if self.solver not in SOLVERS:
             raise ValueError(f"unknown solver {self.solver!r}: choose one of {', '.join(SOLVERS)}")
         for name in ("tol_gamma", "tol_s", "max_step", "min_step", "feasibility_tolerance",
-                     "contact_threshold", "interior_contact_threshold", "balance_tolerance"):
+                     "contact_threshold", "interior_contact_threshold", "balance_tolerance",
+                     "newton_start"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
         if self.initial_step is not None and not self.initial_step > 0:

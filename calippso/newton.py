@@ -1,0 +1,183 @@
+"""Final stage of `jam`: the jamming point of a rigid contact network, by Newton's method.
+
+Once the LPs have found the contact network and it is isostatic (as many contacts N_c as
+unknowns d (N_s − 1) + 1), the jamming point solves the square nonlinear system
+
+    |r_c|² / σ_c² = Γ      for every contact c = (i, j), with r_c = x_i − x_j (fixed image),
+
+in the positions x of the stable particles (one of them pinned) and the common inflation Γ
+of the squared diameters. Newton's method solves it to round-off with a few sparse LU
+solves, where the LP loop would need many more LPs: the neglected |s|² of its linearisation
+keeps the LP displacements from vanishing for a long time.
+
+The answer is certified, not trusted. At the new configuration, with diameters σ √Γ, the
+CALiPPSO LP has the optimum s = 0, Γ = 1 (it is the loop's fixed point) when
+  - no pair overlaps: s = 0, Γ = 1 is feasible (the caller checks every pair);
+  - the self-stress y solving Jᵀ y = (0, …, 0, −1) is positive on every contact: y gives
+    LP multipliers that are dual feasible, and with zero gaps on the contacts complementary
+    slackness holds, so s = 0, Γ = 1 is optimal;
+  - the Jacobian J is non-singular: every optimum keeps all contacts closed (all
+    multipliers are positive), and J_x s = 0 then forces s = 0 on the stable particles.
+If a check fails, the LP loop goes on. In practice the LP's contact network is the jammed
+one only at the very end of the loop: earlier networks, although isostatic, solve to points
+with negative forces or new overlaps, which the certificate rejects.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from .packing import minimum_image, wrap
+
+__all__ = ["Refinement", "refine_isostatic"]
+
+#: Newton stops once the largest correction is below this (mean diameters); quadratic
+#: convergence then leaves an error far below round-off.
+STEP_TOLERANCE = 1e-13
+#: Largest residual | |r|²/σ² − Γ | accepted at the end (dimensionless).
+RESIDUAL_TOLERANCE = 1e-12
+#: Newton gives up when a correction exceeds this (mean diameters): the start was too far.
+MAX_CORRECTION = 0.05
+MAX_ITERATIONS = 30
+
+
+@dataclass(frozen=True, eq=False)
+class Refinement:
+    """A certified jamming point of an isostatic contact network.
+
+    Attributes
+    ----------
+    positions : ndarray, shape (N, d)
+        Positions wrapped into the box (rattlers unmoved), in the caller's units.
+    diameters : ndarray, shape (N,)
+        Diameters times √Γ.
+    forces : ndarray, shape (M,)
+        Contact forces f_c = μ_c / 2 in the LP's normalisation Σ μ_c σ_c²/(2|r_c|) = 1, all
+        positive, in the order of the contacts given.
+    iterations : int
+        Newton iterations (sparse LU factorisations).
+    sqrt_gamma_minus_1 : float
+        √Γ − 1: the diameter growth from the starting configuration.
+    max_displacement : float
+        Largest displacement component of a stable particle from the start.
+    residual : float
+        max_c | |r_c|²/σ_c² − Γ | at the end.
+    """
+
+    positions: np.ndarray
+    diameters: np.ndarray
+    forces: np.ndarray
+    iterations: int
+    sqrt_gamma_minus_1: float
+    max_displacement: float
+    residual: float
+
+    @property
+    def positive(self) -> bool:
+        """Every contact force is positive: the network is the jammed one."""
+        return bool(self.forces.min(initial=np.inf) > 0)
+
+
+def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_col: np.ndarray,
+              j_col: np.ndarray, n_unknowns: int) -> sp.csc_matrix:
+    """Jacobian of |r_c|²/σ_c² − Γ: 2 r_c/σ_c² on x_i, −2 r_c/σ_c² on x_j, −1 on Γ.
+
+    `i_col`, `j_col` hold the first column of each particle's block, −1 if it is pinned.
+    """
+    m, d = vectors.shape
+    coordinate = np.arange(d)
+    gradient = 2.0 * vectors * inverse_sigma2[:, None]
+    rows, cols, values = [np.arange(m)], [np.full(m, n_unknowns - 1)], [np.full(m, -1.0)]
+    for block, sign in ((i_col, 1.0), (j_col, -1.0)):
+        free = block >= 0
+        rows.append(np.repeat(np.flatnonzero(free), d))
+        cols.append((block[free, None] + coordinate).ravel())
+        values.append(sign * gradient[free].ravel())
+    return sp.csc_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(m, n_unknowns))
+
+
+def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                     i: np.ndarray, j: np.ndarray, stable: np.ndarray) -> Refinement | None:
+    """Solve the contact equations of an isostatic network and certify the forces.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Current positions (any units; the mean diameter is a good unit).
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    i, j : ndarray, shape (M,), int
+        The contacts, between stable particles, with M = d (N_s − 1) + 1.
+    stable : ndarray, shape (N,), bool
+        Non-rattlers; every stable particle has a contact.
+
+    Returns
+    -------
+    Refinement or None
+        None when the network is not square, the Jacobian is singular or Newton does not
+        converge. The caller certifies the rest: `Refinement.positive`, and no overlap of
+        pairs that are not contacts.
+    """
+    n, d = positions.shape
+    members = np.flatnonzero(stable)
+    n_unknowns = d * (members.size - 1) + 1
+    if members.size < 2 or i.shape[0] != n_unknowns:
+        return None
+    block = np.full(n, -1, dtype=np.int64)
+    block[members[1:]] = d * np.arange(members.size - 1)  # members[0] is pinned
+    i_col, j_col = block[i], block[j]
+    sigma = 0.5 * (diameters[i] + diameters[j])
+    inverse_sigma2 = 1.0 / sigma**2
+    start_vectors = minimum_image(positions[i] - positions[j], box)
+    image_shift = start_vectors - (positions[i] - positions[j])
+    moved = positions.copy()
+    gamma = float(np.mean(np.einsum("md,md->m", start_vectors, start_vectors) * inverse_sigma2))
+    movable = members[1:]
+
+    def residual_and_vectors() -> tuple[np.ndarray, np.ndarray]:
+        vectors = moved[i] - moved[j] + image_shift
+        return np.einsum("md,md->m", vectors, vectors) * inverse_sigma2 - gamma, vectors
+
+    residual, vectors = residual_and_vectors()
+    factor = None
+    for iteration in range(1, MAX_ITERATIONS + 1):
+        try:
+            factor = splu(_jacobian(vectors, inverse_sigma2, i_col, j_col, n_unknowns))
+        except RuntimeError:  # exactly singular: the network has a floppy mode
+            return None
+        correction = factor.solve(-residual)
+        if not np.all(np.isfinite(correction)):
+            return None
+        largest = float(np.abs(correction[:-1]).max(initial=0.0))
+        if largest > MAX_CORRECTION:
+            return None
+        moved[movable] += correction[:-1].reshape(-1, d)
+        gamma += float(correction[-1])
+        residual, vectors = residual_and_vectors()
+        if largest < STEP_TOLERANCE:
+            break
+    else:
+        return None
+    worst = float(np.abs(residual).max())
+    if worst > RESIDUAL_TOLERANCE or gamma <= 0:
+        return None
+    factor = splu(_jacobian(vectors, inverse_sigma2, i_col, j_col, n_unknowns))
+    target = np.zeros(n_unknowns)
+    target[-1] = -1.0
+    stress = factor.solve(target, trans="T")  # J_xᵀ y = 0 (balance), Σ y = 1
+    if not np.all(np.isfinite(stress)):
+        return None
+    new_diameters = diameters * np.sqrt(gamma)
+    new_sigma = sigma * np.sqrt(gamma)
+    distances = np.sqrt(np.einsum("md,md->m", vectors, vectors))
+    forces = distances * stress / new_sigma**2  # f = μ/2 with μ = 2|r| y / σ'²
+    return Refinement(
+        positions=wrap(moved, box), diameters=new_diameters, forces=forces,
+        iterations=iteration, sqrt_gamma_minus_1=float(np.sqrt(gamma) - 1.0),
+        max_displacement=float(np.abs(moved[movable] - positions[movable]).max(initial=0.0)),
+        residual=worst)

@@ -1,0 +1,79 @@
+"""The Newton stage: contact equations of an isostatic network, and its certificate."""
+
+import numpy as np
+import pytest
+from configurations import random_sequential_addition
+
+from calippso import jam
+from calippso.newton import refine_isostatic
+from calippso.packing import minimum_image
+
+
+@pytest.fixture(scope="module")
+def jammed():
+    """A packing jammed by LPs only (no Newton stage), and its input."""
+    start = random_sequential_addition(96, 3, 0.3, seed=21)
+    return start, jam(start, newton=False)
+
+
+def test_jammed_network_is_its_own_newton_solution(jammed):
+    _, result = jammed
+    packing = result.packing
+    i, j = result.contacts.T
+    refined = refine_isostatic(packing.positions, packing.diameters, packing.box, i, j,
+                               ~result.rattlers)
+    assert refined is not None and refined.positive
+    assert abs(refined.sqrt_gamma_minus_1) < 1e-12
+    assert refined.max_displacement < 1e-11
+    # the self-stress is the LP's force network (forces of the result have mean 1)
+    np.testing.assert_allclose(refined.forces / refined.forces.mean(), result.forces,
+                               rtol=1e-8)
+
+
+def test_newton_returns_to_the_jamming_point_from_a_perturbed_one(jammed):
+    _, result = jammed
+    packing = result.packing
+    stable = ~result.rattlers
+    pinned = np.flatnonzero(stable)[0]
+    rng = np.random.default_rng(3)
+    moved = packing.positions + 1e-5 * rng.standard_normal(packing.positions.shape)
+    moved[pinned] = packing.positions[pinned]
+    shrunk = packing.diameters * (1 - 1e-6)
+    i, j = result.contacts.T
+    refined = refine_isostatic(moved, shrunk, packing.box, i, j, stable)
+    assert refined is not None and refined.positive
+    assert refined.residual < 1e-13
+    back = minimum_image(refined.positions[stable] - packing.positions[stable], packing.box)
+    assert np.abs(back).max() < 1e-10
+    np.testing.assert_allclose(refined.diameters, packing.diameters, rtol=1e-12)
+
+
+def test_non_square_network_is_refused(jammed):
+    _, result = jammed
+    packing = result.packing
+    i, j = result.contacts[1:].T  # one contact short: a floppy mode
+    assert refine_isostatic(packing.positions, packing.diameters, packing.box, i, j,
+                            ~result.rattlers) is None
+
+
+def test_newton_stage_agrees_with_the_lp_only_run(jammed):
+    start, lp_only = jammed
+    result = jam(start)
+    assert "newton" in set(result.history["stage"])
+    assert "solved by Newton" in result.status
+    assert result.converged and result.isostatic
+    assert result.phi == pytest.approx(lp_only.phi, rel=1e-11)
+    np.testing.assert_array_equal(result.contacts, lp_only.contacts)
+    np.testing.assert_allclose(result.forces, lp_only.forces, rtol=1e-8)
+    assert result.force_balance < 1e-12
+
+
+def test_an_lp_at_the_newton_solution_confirms_it(jammed):
+    start, _ = jammed
+    result = jam(start, verify_newton=True)
+    assert result.converged and result.isostatic
+    assert "confirmed convergence" in result.status
+    lp_rows = result.history[result.history["stage"] == "lp"]
+    assert lp_rows["sqrt_gamma_minus_1"][-1] < 1e-12
+    assert lp_rows["max_displacement"][-1] < 1e-9
+
