@@ -3,7 +3,7 @@
 MLS grows fast at first and ever slower near jamming, to stay in the start's basin; its
 final packing is already near phi_J, and CALiPPSO certifies it (contacts, forces).
 
-    python examples/mls_closest_jamming.py          # N = 512, d = 3
+    python examples/mls_closest_jamming.py          # N = 256, d = 3
     python examples/mls_closest_jamming.py --tiny   # N = 48
 """
 
@@ -15,7 +15,7 @@ import generators
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=512, help="number of spheres")
+    parser.add_argument("--n", type=int, default=256, help="number of spheres")
     parser.add_argument("--tiny", action="store_true", help="N = 48, for a quick check")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args(argv)
