@@ -81,6 +81,8 @@ def _four_d(tmp_path):
     (["generate", "ls", "--n", "1", "-o", "x.npz"], 2, "--n"),
     (["generate", "ls", "--pressure", "-5", "-o", "x.npz"], 2, "--pressure"),
     (["frobnicate"], 2, "No such command"),
+    (["generate", "spherocylinders", "-o", "rods.npz"], 2, "extended XYZ"),
+    (["generate", "mls", "--input", "{tmp}/missing.npz", "-o", "{tmp}/out.npz"], 1, "no such file"),
     (["jam", "{tmp}/missing.npz", "-o", "{tmp}/out.npz"], 1, "no such file"),
     (["jam", "{overlap}", "-o", "{tmp}/out.npz"], 1, "overlap"),
     (["convert", "{d4}", "{tmp}/d4.xyz"], 1, "d = 4"),
