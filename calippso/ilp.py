@@ -13,12 +13,16 @@ At the end, contacts and forces come from the duals of an LP solved at the final
 
 from __future__ import annotations
 
+import hashlib
+import os
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
+from .checkpoint import load_state, save_state, signature
 from .contacts import (contact_mask, force_balance, isostaticity_gap, polish_forces,
                        remove_rattlers)
 from .errors import JammingError, SolverError
@@ -42,7 +46,8 @@ NEWTON_OVERLAP_TOLERANCE = 1e-12
 
 def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: float = 1e-12,
         tol_s: float = 1e-9, max_iters: int = 1000, verbose: bool = False,
-        callback: Callable[[dict], bool | None] | None = None, **options) -> JammingResult:
+        callback: Callable[[dict], bool | None] | None = None,
+        checkpoint: str | os.PathLike | None = None, **options) -> JammingResult:
     """Bring a configuration of hard (hyper)spheres to its jamming point with CALiPPSO.
 
     Parameters
@@ -67,6 +72,10 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     callback : callable, optional
         Called after every LP with a dict (the history record plus "iteration" and "packing");
         returning True stops the run (the result then has ``converged=False``).
+    checkpoint : str or PathLike, optional
+        File (``.npz``) where the loop's state is saved atomically after every LP. If it
+        exists, the run resumes from it (same input and settings required, otherwise
+        ValueError) and gives the result the uninterrupted run would have given.
     **options
         Further `JamSettings` fields (e.g. ``initial_step``, ``max_step``,
         ``contact_threshold``, ``feasibility_tolerance``).
@@ -85,7 +94,7 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     """
     settings = JamSettings.from_options(solver=solver, tol_gamma=tol_gamma, tol_s=tol_s,
                                         max_iters=max_iters, verbose=verbose, **options)
-    return _Jammer(_as_packing(packing, diameters, box), settings, callback).run()
+    return _Jammer(_as_packing(packing, diameters, box), settings, callback, checkpoint).run()
 
 
 def _as_packing(packing, diameters, box) -> Packing:
@@ -207,7 +216,8 @@ def _solution_problem(lp: LinearProgram, solution: LPSolution) -> str | None:
 class _Jammer:
     """State of one `jam` call (internal units: mean input diameter = 1)."""
 
-    def __init__(self, packing: Packing, settings: JamSettings, callback):
+    def __init__(self, packing: Packing, settings: JamSettings, callback,
+                 checkpoint: str | os.PathLike | None = None):
         self.settings = settings
         self.callback = callback
         self.start = time.perf_counter()
@@ -222,10 +232,34 @@ class _Jammer:
         self.records: list[dict] = []
         self.notes: list[str] = []
         self.solver_name = settings.solver
-        self.failed_networks: set[int] = set()
+        self.failed_networks: set[str] = set()
+        self.forced = np.zeros((0, 2), dtype=np.int64)
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
         self._check_input_overlaps()
         self.step = initial_step_bound(self.search, settings)
+        self.checkpoint = None if checkpoint is None else Path(checkpoint)
+        if self.checkpoint is not None:
+            self.checkpoint_key = signature(packing, settings)
+            self._resume(load_state(self.checkpoint, self.checkpoint_key))
+
+    def _resume(self, state: dict | None) -> None:
+        """Continue from a saved state (see `calippso.checkpoint`)."""
+        if state is None:
+            return
+        self.positions, self.diameters = state["positions"], state["diameters"]
+        self.search = NeighborSearch(self.positions, self.diameters, self.box)
+        self.step, self.forced = state["step"], state["forced"]
+        self.failed_networks, self.records = state["failed_networks"], state["records"]
+        self.notes = state["notes"]
+        if self.records:
+            self.start -= self.records[-1]["wall_time"]
+
+    def _save_state(self) -> None:
+        if self.checkpoint is not None:
+            save_state(self.checkpoint, self.checkpoint_key, {
+                "positions": self.positions, "diameters": self.diameters, "step": self.step,
+                "forced": self.forced, "failed_networks": self.failed_networks,
+                "records": self.records, "notes": self.notes})
 
     # ----------------------------------------------------------------- helpers
     @property
@@ -351,7 +385,6 @@ class _Jammer:
     # ----------------------------------------------------------------- main loop
     def run(self) -> JammingResult:
         settings = self.settings
-        forced = np.zeros((0, 2), dtype=np.int64)
         converged = False
         stopped = False
         network: _Network | None = None
@@ -361,7 +394,7 @@ class _Jammer:
             if bound < settings.min_step * 1e-3:
                 raise self._fail("box too small: even a vanishing step would need pairs "
                                  "beyond half the box side")
-            step_result = self._solve(self.search, bound, self.fixed, forced=forced)
+            step_result = self._solve(self.search, bound, self.fixed, forced=self.forced)
             s, gamma = step_result.displacements, step_result.solution.gamma
             positions = wrap(self.positions + s, self.box)
             diameters = self.diameters * np.sqrt(1.0 + gamma)
@@ -374,7 +407,7 @@ class _Jammer:
                 # A pair left out of the LP overlaps (round-off at the edge of the safe
                 # selection): keep it from now on and solve this LP again.
                 new = np.column_stack([close.i[outside], close.j[outside]])
-                forced = np.unique(np.concatenate([forced, new]), axis=0)
+                self.forced = np.unique(np.concatenate([self.forced, new]), axis=0)
                 self.notes.append(f"{int(outside.sum())} pair(s) outside the LP overlapped "
                                   f"after LP {self.lps_solved + 1}; re-solved with them")
                 continue
@@ -410,6 +443,7 @@ class _Jammer:
                         converged = True
                         break
                     verifying, self.step = True, CLEANUP_STEP
+            self._save_state()
         if network is None:
             raise self._fail(f"no LP was solved (max_iters = {settings.max_iters})")
         return self._finish(network, converged, stopped)
@@ -428,7 +462,7 @@ class _Jammer:
         to the certified jamming point and a history record (stage "newton") is added.
         """
         order = np.sort(network.i * self.n + network.j)
-        key = hash(order.tobytes())
+        key = hashlib.sha256(order.tobytes()).hexdigest()
         if key in self.failed_networks:
             return None
         start = time.perf_counter()

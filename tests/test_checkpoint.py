@@ -1,0 +1,105 @@
+"""jam(..., checkpoint=path): state saved after every LP, exact resumption, even after SIGKILL."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from configurations import random_sequential_addition
+from test_ilp import assert_jammed
+
+from calippso import jam
+
+TESTS = Path(__file__).resolve().parent
+
+
+def start_configuration():
+    return random_sequential_addition(128, 3, 0.3, seed=5)
+
+
+@pytest.fixture(scope="module")
+def uninterrupted():
+    return jam(start_configuration())
+
+
+class Crash(Exception):
+    """Stands for anything that ends a process in the middle of a run."""
+
+
+def assert_same_result(resumed, reference):
+    np.testing.assert_array_equal(resumed.packing.positions, reference.packing.positions)
+    np.testing.assert_array_equal(resumed.packing.diameters, reference.packing.diameters)
+    np.testing.assert_array_equal(resumed.contacts, reference.contacts)
+    np.testing.assert_array_equal(resumed.forces, reference.forces)
+    assert resumed.iterations == reference.iterations
+    np.testing.assert_array_equal(resumed.history["phi"], reference.history["phi"])
+
+
+def test_resumed_run_gives_the_uninterrupted_result(tmp_path, uninterrupted):
+    path = tmp_path / "state.npz"
+
+    def crash_after_five(record):
+        if record["iteration"] == 5:
+            raise Crash
+
+    with pytest.raises(Crash):
+        jam(start_configuration(), checkpoint=path, callback=crash_after_five)
+    assert path.exists()
+    with np.load(path) as saved:
+        assert saved["history_phi"].shape[0] == 4  # state after LP 4; LP 5 never saved
+    resumed = jam(start_configuration(), checkpoint=path)
+    assert_jammed(resumed)
+    assert_same_result(resumed, uninterrupted)
+
+
+def test_run_killed_by_sigkill_resumes(tmp_path, uninterrupted):
+    path = tmp_path / "killed.npz"
+    script = (
+        "from configurations import random_sequential_addition\n"
+        "from calippso import jam\n"
+        f"jam(random_sequential_addition(128, 3, 0.3, seed=5), checkpoint={str(path)!r})\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(TESTS), str(TESTS.parent), os.environ.get("PYTHONPATH", "")])}
+    process = subprocess.Popen([sys.executable, "-c", script], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and process.poll() is None:
+            if path.exists():
+                with np.load(path) as saved:
+                    if saved["history_phi"].shape[0] >= 8:
+                        break
+            time.sleep(0.05)
+        assert process.poll() is None, "the run ended before it could be killed"
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+    finally:
+        if process.poll() is None:
+            process.kill()
+    resumed = jam(start_configuration(), checkpoint=path)
+    assert_jammed(resumed)
+    assert_same_result(resumed, uninterrupted)
+
+
+def test_checkpoint_of_another_input_is_refused(tmp_path):
+    path = tmp_path / "other.npz"
+
+    def stop(record):
+        return record["iteration"] == 2
+
+    jam(random_sequential_addition(32, 2, 0.4, seed=1), checkpoint=path, callback=stop)
+    with pytest.raises(ValueError, match="another input"):
+        jam(start_configuration(), checkpoint=path)
+    with pytest.raises(ValueError, match="another input"):
+        jam(random_sequential_addition(32, 2, 0.4, seed=1), checkpoint=path, step_growth=3.0)
+
+
+def test_a_file_that_is_not_a_checkpoint_is_refused(tmp_path):
+    path = tmp_path / "junk.npz"
+    np.savez(path, positions=np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="not a jam checkpoint"):
+        jam(start_configuration(), checkpoint=path)
