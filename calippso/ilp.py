@@ -233,6 +233,7 @@ class _Jammer:
         self.notes: list[str] = []
         self.solver_name = settings.solver
         self.failed_networks: set[str] = set()
+        self.retried_lps = 0
         self.forced = np.zeros((0, 2), dtype=np.int64)
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
         self._check_input_overlaps()
@@ -305,10 +306,11 @@ class _Jammer:
     def _solve(self, search: NeighborSearch, step: float, fixed: np.ndarray,
                stable: np.ndarray | None = None,
                forced: np.ndarray = np.zeros((0, 2), dtype=np.int64)) -> _Step:
-        """Build and solve one LP; on failure retry with a smaller bound, then other backends."""
+        """Build and solve one LP; on failure retry with a smaller bound, then other backends
+        (each at the full bound, then at a quarter of it)."""
         attempts = [(self.solver_name, step), (self.solver_name, step / 4)]
-        attempts += [(name, step / 4) for name in self.settings.fallback_solvers
-                     if name != self.solver_name]
+        attempts += [(name, bound) for name in self.settings.fallback_solvers
+                     if name != self.solver_name for bound in (step, step / 4)]
         failures = []
         for name, bound in attempts:
             lp = build_lp(self._pairs(search, bound, stable, forced), self.n, self.d, bound, fixed)
@@ -320,8 +322,10 @@ class _Jammer:
             problem = _solution_problem(lp, solution)
             if problem is None:
                 if (name, bound) != attempts[0]:
-                    self.notes.append(f"LP {self.lps_solved + 1} needed a retry ({name}, "
-                                      f"bound {bound:.1e}) after: {'; '.join(failures)}")
+                    if not self.retried_lps:
+                        self.notes.append(f"LP {self.lps_solved + 1} needed a retry ({name}, "
+                                          f"bound {bound:.1e}) after: {'; '.join(failures)}")
+                    self.retried_lps += 1
                 return self._analyse(lp, solution, stable)
             failures.append(f"{name} (bound {bound:.1e}): {problem}")
         raise self._fail(f"every LP backend failed at LP {self.lps_solved + 1}: "
@@ -430,7 +434,8 @@ class _Jammer:
                 break
             if converged:
                 break
-            self.step = next_step_bound(bound, step_result, settings)
+            # adapt from the bound the accepted LP had (a retry may have used a smaller one)
+            self.step = next_step_bound(step_result.lp.step_bound, step_result, settings)
             if (settings.newton and record["isostaticity_gap"] == 0 and record["n_contacts"]
                     and step_result.max_displacement < settings.newton_start):
                 refined = self._newton(network)
@@ -591,6 +596,8 @@ class _Jammer:
         tail = "isostatic" if gap == 0 else f"isostaticity gap {gap:+d}"
         sentence = (f"{head} (sqrt(Gamma)-1 = {last['sqrt_gamma_minus_1']:.1e}, "
                     f"max|s| = {last['max_displacement']:.1e}); {tail}.")
-        if self.notes:
-            sentence += " Notes: " + "; ".join(self.notes) + "."
+        notes = self.notes + ([f"{self.retried_lps} LPs in all needed a retry"]
+                              if self.retried_lps > 1 else [])
+        if notes:
+            sentence += " Notes: " + "; ".join(notes) + "."
         return sentence
