@@ -73,7 +73,7 @@ def run(packing: calippso.Packing, solver: str, tol_gamma: float, tol_s: float,
 
 
 def add_phi_error(rows: list[dict]) -> None:
-    """|φ − φ_tightest| per dimension, the tightest run being HiGHS at the smallest tolerances."""
+    """|φ − φ_tightest| per dimension; the tightest run: HiGHS at the smallest tolerances."""
     for d in {r["d"] for r in rows}:
         same = [r for r in rows if r["d"] == d]
         tightest = min(same, key=lambda r: (r["solver"] != "highs", r["tol_gamma"], r["tol_s"]))

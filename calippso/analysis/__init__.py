@@ -9,7 +9,8 @@ cumulative), `fits` (power-law fits of cumulatives, window rule, bootstrap), `ex
 (γ, θ_e, θ_ℓ and reference values), `summary` (`analyze`, everything at once).
 """
 
-from .exponents import REFERENCE_EXPONENTS, UPPER, Exponent, critical_exponents, exponent_from_sample
+from .exponents import (REFERENCE_EXPONENTS, UPPER, Exponent, critical_exponents,
+                        exponent_from_sample)
 from .fits import PowerLawFit, fit_cumulative_power_law
 from .forces import bucklers, localized_contacts, normalized_forces, pooled_forces
 from .gaps import DEFAULT_MAX_GAP, gaps, pooled_gaps

@@ -2,13 +2,13 @@
 
 Each exponent comes from a power-law fit of a cumulative (`calippso.analysis.fits`):
 
-=========  ==========================  =====================  ==================  ==========
-name       distribution                cumulative             exponent            reference
-=========  ==========================  =====================  ==================  ==========
-gamma      g(h) ~ h^−γ (gaps)          Z(h) − z ~ h^(1−γ)     γ = 1 − slope       0.41269
-theta_e    P_e(f) ~ f^θ_e (extended)   G_e(f) ~ f^(1+θ_e)     θ_e = slope − 1     0.42311
-theta_l    P_ℓ(f) ~ f^θ_ℓ (localised)  G_ℓ(f) ~ f^(1+θ_ℓ)     θ_ℓ = slope − 1     0.17
-=========  ==========================  =====================  ==================  ==========
+=======  ==========================  ===================  ===============  =========
+name     distribution                cumulative           exponent         reference
+=======  ==========================  ===================  ===============  =========
+gamma    g(h) ~ h^−γ (gaps)          Z(h) − z ~ h^(1−γ)   γ = 1 − slope    0.41269
+theta_e  P_e(f) ~ f^θ_e (extended)   G_e(f) ~ f^(1+θ_e)   θ_e = slope − 1  0.42311
+theta_l  P_ℓ(f) ~ f^θ_ℓ (localised)  G_ℓ(f) ~ f^(1+θ_ℓ)   θ_ℓ = slope − 1  0.17
+=======  ==========================  ===================  ===============  =========
 
 Upper ends of the fit windows (`UPPER`): h ≤ 1e-2 for gaps, f ≤ 0.1 (mean force 1) for
 forces, chosen from the local slopes of the cumulatives of pooled d = 3 packings (N = 1024, LS

@@ -55,8 +55,9 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
         e = summary["exponents"].get(name)
         if e is None:
             reason = summary["exponent_errors"].get(name, "not fitted")
-            lines.append(f"| {symbol} ({what}) | — | — | {summary['reference_exponents'][name]:g}"
-                         f" | not fitted: {reason} | | |")
+            reference = summary["reference_exponents"][name]
+            lines.append(f"| {symbol} ({what}) | — | — | {reference:g} | not fitted: {reason} "
+                         "| | |")
             continue
         low, high = e["interval"]
         lines.append(f"| {symbol} ({what}) | {_fmt(e['value'])} | [{_fmt(low)}, {_fmt(high)}] "
