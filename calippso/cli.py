@@ -137,6 +137,13 @@ def make_diameters(n: int, distribution: str, ratio: float, std: float, seed: in
     return diameters.monodisperse(n)
 
 
+def checkpoint_option(command: Callable) -> Callable:
+    """Add ``--checkpoint PATH``: save the run's state there, resume from it if it exists."""
+    return click.option("--checkpoint", type=click.Path(dir_okay=False, path_type=Path),
+                        help="State file (.npz) saved during the run; an existing one is "
+                             "resumed.")(command)
+
+
 def output_path(option: str = "-o") -> Callable:
     return click.option(option, "--output", "output", type=click.Path(dir_okay=False, path_type=Path),
                         required=True, help="Output file; the extension picks the format.")
@@ -174,9 +181,11 @@ def generate() -> None:
               help="Target reduced pressure p = βP/ρ.")
 @click.option("--growth-rate", type=positive(float), default=1e-2, show_default=True,
               help="Growth rate dσ/dt.")
+@checkpoint_option
 @output_path()
 @output_options
-def generate_ls(n, d, distribution, ratio, std, seed, pressure, growth_rate, output, out):
+def generate_ls(n, d, distribution, ratio, std, seed, pressure, growth_rate, checkpoint, output,
+                out):
     """Lubachevsky–Stillinger compression from random centres to a target pressure."""
     import calippso
     import generators
@@ -184,7 +193,7 @@ def generate_ls(n, d, distribution, ratio, std, seed, pressure, growth_rate, out
     sizes = make_diameters(n, distribution, ratio, std, seed)
     generation = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
                                                    growth_rate=growth_rate, seed=seed,
-                                                   progress=out.progress)
+                                                   progress=out.progress, checkpoint=checkpoint)
     return _generation_record("ls", generation, calippso.write(generation.packing, output))
 
 
@@ -211,9 +220,11 @@ def generate_fb(n, d, distribution, ratio, std, seed, contraction_rate, output, 
               help="Start configuration (default: random centres at phi = 0.3).")
 @click.option("--final-rate", type=positive(float), default=1e-4, show_default=True,
               help="Final growth rate.")
+@checkpoint_option
 @output_path()
 @output_options
-def generate_mls(n, d, distribution, ratio, std, seed, input_path, final_rate, output, out):
+def generate_mls(n, d, distribution, ratio, std, seed, input_path, final_rate, checkpoint, output,
+                 out):
     """Closest jammed configuration (modified LS) of a start configuration."""
     import calippso
     import generators
@@ -223,7 +234,7 @@ def generate_mls(n, d, distribution, ratio, std, seed, input_path, final_rate, o
     else:
         start = generators.poisson(make_diameters(n, distribution, ratio, std, seed), d, 0.3, seed)
     generation = generators.closest_jamming(start, final_rate=final_rate, seed=seed,
-                                            progress=out.progress)
+                                            progress=out.progress, checkpoint=checkpoint)
     return _generation_record("mls", generation, calippso.write(generation.packing, output))
 
 
@@ -316,8 +327,9 @@ def _jam_record(result, source, output: Path | None) -> dict:
               help="... and max |s| over non-rattlers (mean diameters) is below this.")
 @click.option("--max-iters", type=positive(int), default=1000, show_default=True,
               help="Largest number of LPs.")
+@checkpoint_option
 @output_options
-def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, out):
+def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, checkpoint, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
@@ -326,7 +338,7 @@ def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, out):
 
     packing = calippso.read(input_path)
     result = jam_with_progress(packing, out.progress, solver=solver, tol_gamma=tol_gamma,
-                               tol_s=tol_s, max_iters=max_iters)
+                               tol_s=tol_s, max_iters=max_iters, checkpoint=checkpoint)
     written = calippso.write(result, output)
     return _jam_record(result, input_path, written), f"{result.summary()}\n-> {written}"
 

@@ -3,7 +3,10 @@
 Every packing is one task, `run_one(spec, seed, out_dir)`, which writes
 ``out_dir/packing_<seed>.npz`` atomically as soon as it is jammed (the full `JammingResult`
 plus the start's keys ``seed``, ``start_phi``, ``start_reduced_pressure``,
-``generation_wall_time``). The calling process rewrites ``out_dir/summary.csv`` (one row
+``generation_wall_time``). While it runs, the LS/MLS generator and the jamming loop save
+their state in ``state_<seed>_start.npz`` and ``state_<seed>_jam.npz``; a
+task started again after a crash resumes from them, and they are removed once the packing
+is written. The calling process rewrites ``out_dir/summary.csv`` (one row
 per packing, `COLUMNS`) after each finished task. A re-run skips every seed whose file
 exists (resume); a task that raises is recorded as a "failed" row, with its traceback in
 ``packing_<seed>.error.txt``, and the other tasks go on (a failed seed is retried by the
@@ -114,8 +117,11 @@ def _diameters(spec: EnsembleSpec, seed: int) -> np.ndarray:
     return diameters.monodisperse(spec.n)
 
 
-def generate_start(spec: EnsembleSpec, seed: int):
-    """Make the start of one packing; returns (packing, reduced pressure, seconds)."""
+def generate_start(spec: EnsembleSpec, seed: int, checkpoint: Path | None = None):
+    """Make the start of one packing; returns (packing, reduced pressure, seconds).
+
+    `checkpoint` is the state file of the LS and MLS generators (resumed if it exists).
+    """
     import generators
 
     from .neighbors import min_gap
@@ -123,11 +129,12 @@ def generate_start(spec: EnsembleSpec, seed: int):
     sizes = _diameters(spec, seed)
     if spec.protocol == "ls":
         made = generators.lubachevsky_stillinger(sizes, d=spec.d, target_pressure=spec.pressure,
-                                                 seed=seed)
+                                                 seed=seed, checkpoint=checkpoint)
     elif spec.protocol == "fb":
         made = generators.force_biased(sizes, spec.d, seed=seed)
     elif spec.protocol == "mls":
-        made = generators.closest_jamming(generators.poisson(sizes, spec.d, spec.phi, seed), seed=seed)
+        start = generators.poisson(sizes, spec.d, spec.phi, seed)
+        made = generators.closest_jamming(start, seed=seed, checkpoint=checkpoint)
     else:
         began = time.perf_counter()
         packing = generators.poisson(sizes, spec.d, spec.phi, seed)
@@ -181,15 +188,18 @@ def run_one(spec: EnsembleSpec | dict, seed: int, out_dir: str | os.PathLike) ->
     out_dir = Path(out_dir)
     path = packing_file(out_dir, seed)
     error_file = path.with_suffix(".error.txt")
+    checkpoints = [out_dir / f"state_{seed:06d}_{stage}.npz" for stage in ("start", "jam")]
     try:
         spec = EnsembleSpec.of(spec)
-        start, pressure, seconds = generate_start(spec, seed)
-        result = calippso.jam(start, solver=spec.solver, **spec.jam_options)
+        start, pressure, seconds = generate_start(spec, seed, checkpoints[0])
+        result = calippso.jam(start, solver=spec.solver, checkpoint=checkpoints[1],
+                              **spec.jam_options)
         extra = {"seed": np.array(seed), "start_phi": np.array(start.phi),
                  "start_reduced_pressure": np.array(pressure),
                  "generation_wall_time": np.array(seconds)}
         save_npz_atomic(path, {**result.to_arrays(), **extra})
-        error_file.unlink(missing_ok=True)
+        for finished in (error_file, *checkpoints):
+            finished.unlink(missing_ok=True)
         return _row_from_file(path, seed)
     except Exception as error:  # a failing packing is recorded, the others go on
         out_dir.mkdir(parents=True, exist_ok=True)

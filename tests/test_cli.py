@@ -129,3 +129,14 @@ def test_console_entry_points():
     run = subprocess.run([sys.executable, "-m", "calippso", "jam", "nowhere.npz", "-o", "x.npz"],
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 1 and run.stderr == "error: no such file or folder: nowhere.npz\n"
+
+
+def test_jam_checkpoint_resumes_to_the_same_result(capfd, tmp_path, start_2d):
+    state = tmp_path / "state.npz"
+    argv = ["jam", start_2d, "--checkpoint", state, "--json", "--quiet"]
+    first = _run(capfd, *argv, "-o", tmp_path / "a.npz")
+    assert first[0] == 0 and state.exists()
+    again = _run(capfd, *argv, "-o", tmp_path / "b.npz")
+    assert again[0] == 0
+    a, b = (calippso.load_result(tmp_path / name) for name in ("a.npz", "b.npz"))
+    assert a.phi == b.phi and (a.contacts == b.contacts).all()

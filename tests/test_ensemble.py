@@ -30,6 +30,8 @@ def test_local_processes_write_resume_and_record_failures(tmp_path):
     assert [row["seed"] for row in table] == ["1", "2", "3"]
     assert table[0]["isostatic"] == "True" and float(table[0]["phi"]) > 0.8
     assert not list(tmp_path.glob(".*.tmp"))  # no temporary file left behind
+    assert not (tmp_path / "state_000001_jam.npz").exists()  # removed once written
+    assert (tmp_path / "state_000002_jam.npz").exists()  # kept: packing 2 was not written
 
     finished = ensemble.packing_file(tmp_path, 1).stat().st_mtime_ns
     ensemble.packing_file(tmp_path, 2).rmdir()
@@ -37,6 +39,7 @@ def test_local_processes_write_resume_and_record_failures(tmp_path):
     assert [row["state"] for row in rows] == ["done"] * 4
     assert ensemble.packing_file(tmp_path, 1).stat().st_mtime_ns == finished  # skipped
     assert not (tmp_path / "packing_000002.error.txt").exists()
+    assert not list(tmp_path.glob("state_*"))
     assert len(_table(tmp_path)) == 4
 
 
