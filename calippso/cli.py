@@ -21,11 +21,11 @@ from pathlib import Path
 
 import click
 
+from .ensemble import DISTRIBUTIONS, PROTOCOLS, make_diameters
+
 __all__ = ["main", "cli"]
 
 EXIT_DATA, EXIT_USAGE, EXIT_NOT_CONVERGED = 1, 2, 3
-
-DISTRIBUTIONS = ("monodisperse", "bidisperse", "lognormal")
 
 
 class NotConverged(Exception):
@@ -95,8 +95,9 @@ def output_options(command: Callable) -> Callable:
             raise NotConverged(record.get("status", ""))
         return record
 
-    wrapper = click.option("--json", "as_json", is_flag=True,
-                           help="Print a JSON summary on stdout instead of text.")(wrapper)
+    wrapper = click.option(
+        "--json", "as_json", is_flag=True, help="Print a JSON summary on stdout instead of text."
+    )(wrapper)
     return click.option("--quiet", "-q", is_flag=True, help="No progress bars.")(wrapper)
 
 
@@ -108,56 +109,86 @@ def positive(kind: type) -> click.ParamType:
 def diameter_options(command: Callable) -> Callable:
     """Options --n, --d and the size distribution."""
     options = [
-        click.option("--n", "n", type=click.IntRange(min=2), default=256, show_default=True,
-                     help="Number of particles."),
-        click.option("--d", "d", type=click.IntRange(min=2), default=3, show_default=True,
-                     help="Dimension."),
-        click.option("--distribution", type=click.Choice(DISTRIBUTIONS), default="monodisperse",
-                     show_default=True, help="Diameter distribution."),
-        click.option("--ratio", type=positive(float), default=1.4, show_default=True,
-                     help="Bidisperse size ratio (50:50)."),
-        click.option("--std", type=positive(float), default=0.1, show_default=True,
-                     help="Log-normal standard deviation (mean diameter 1)."),
-        click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-                     help="Random seed."),
+        click.option(
+            "--n",
+            "n",
+            type=click.IntRange(min=2),
+            default=256,
+            show_default=True,
+            help="Number of particles.",
+        ),
+        click.option(
+            "--d", "d", type=click.IntRange(min=2), default=3, show_default=True, help="Dimension."
+        ),
+        click.option(
+            "--distribution",
+            type=click.Choice(DISTRIBUTIONS),
+            default="monodisperse",
+            show_default=True,
+            help="Diameter distribution.",
+        ),
+        click.option(
+            "--ratio",
+            type=positive(float),
+            default=1.4,
+            show_default=True,
+            help="Bidisperse size ratio (50:50).",
+        ),
+        click.option(
+            "--std",
+            type=positive(float),
+            default=0.1,
+            show_default=True,
+            help="Log-normal standard deviation (mean diameter 1).",
+        ),
+        click.option(
+            "--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed."
+        ),
     ]
     for option in reversed(options):
         command = option(command)
     return command
 
 
-def make_diameters(n: int, distribution: str, ratio: float, std: float, seed: int):
-    """Diameters from `generators.diameters` by name."""
-    from generators import diameters
-
-    if distribution == "bidisperse":
-        return diameters.bidisperse(n, ratio=ratio, seed=seed)
-    if distribution == "lognormal":
-        return diameters.lognormal(n, std=std, seed=seed)
-    return diameters.monodisperse(n)
-
-
 def checkpoint_option(command: Callable) -> Callable:
     """Add ``--checkpoint PATH``: save the run's state there, resume from it if it exists."""
-    return click.option("--checkpoint", type=click.Path(dir_okay=False, path_type=Path),
-                        help="State file (.npz) saved during the run; an existing one is "
-                             "resumed.")(command)
+    return click.option(
+        "--checkpoint",
+        type=click.Path(dir_okay=False, path_type=Path),
+        help="State file (.npz) saved during the run; an existing one is resumed.",
+    )(command)
 
 
 def output_path(option: str = "-o") -> Callable:
-    return click.option(option, "--output", "output", type=click.Path(dir_okay=False, path_type=Path),
-                        required=True, help="Output file; the extension picks the format.")
+    return click.option(
+        option,
+        "--output",
+        "output",
+        type=click.Path(dir_okay=False, path_type=Path),
+        required=True,
+        help="Output file; the extension picks the format.",
+    )
 
 
 def _generation_record(protocol: str, generation, output: Path) -> tuple[dict, str]:
     packing = generation.packing
-    record = {"command": "generate", "protocol": protocol, "n": packing.n, "d": packing.d,
-              "phi": packing.phi, "reduced_pressure": generation.reduced_pressure,
-              "collisions": generation.collisions, "wall_time": generation.wall_time,
-              "status": generation.status, "output": str(output)}
-    text = (f"{protocol}: N = {packing.n}, d = {packing.d}, phi = {packing.phi:.6f}, "
-            f"p = {generation.reduced_pressure:.3g}, {generation.wall_time:.1f} s "
-            f"({generation.status}) -> {output}")
+    record = {
+        "command": "generate",
+        "protocol": protocol,
+        "n": packing.n,
+        "d": packing.d,
+        "phi": packing.phi,
+        "reduced_pressure": generation.reduced_pressure,
+        "collisions": generation.collisions,
+        "wall_time": generation.wall_time,
+        "status": generation.status,
+        "output": str(output),
+    }
+    text = (
+        f"{protocol}: N = {packing.n}, d = {packing.d}, phi = {packing.phi:.6f}, "
+        f"p = {generation.reduced_pressure:.3g}, {generation.wall_time:.1f} s "
+        f"({generation.status}) -> {output}"
+    )
     return record, text
 
 
@@ -177,30 +208,52 @@ def generate() -> None:
 
 @generate.command("ls")
 @diameter_options
-@click.option("--pressure", type=positive(float), default=1e5, show_default=True,
-              help="Target reduced pressure p = βP/ρ.")
-@click.option("--growth-rate", type=positive(float), default=1e-2, show_default=True,
-              help="Growth rate dσ/dt.")
+@click.option(
+    "--pressure",
+    type=positive(float),
+    default=1e5,
+    show_default=True,
+    help="Target reduced pressure p = βP/ρ.",
+)
+@click.option(
+    "--growth-rate",
+    type=positive(float),
+    default=1e-2,
+    show_default=True,
+    help="Growth rate dσ/dt.",
+)
 @checkpoint_option
 @output_path()
 @output_options
-def generate_ls(n, d, distribution, ratio, std, seed, pressure, growth_rate, checkpoint, output,
-                out):
+def generate_ls(
+    n, d, distribution, ratio, std, seed, pressure, growth_rate, checkpoint, output, out
+):
     """Lubachevsky–Stillinger compression from random centres to a target pressure."""
     import calippso
     import generators
 
-    sizes = make_diameters(n, distribution, ratio, std, seed)
-    generation = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
-                                                   growth_rate=growth_rate, seed=seed,
-                                                   progress=out.progress, checkpoint=checkpoint)
+    sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
+    generation = generators.lubachevsky_stillinger(
+        sizes,
+        d=d,
+        target_pressure=pressure,
+        growth_rate=growth_rate,
+        seed=seed,
+        progress=out.progress,
+        checkpoint=checkpoint,
+    )
     return _generation_record("ls", generation, calippso.write(generation.packing, output))
 
 
 @generate.command("fb")
 @diameter_options
-@click.option("--contraction-rate", type=positive(float), default=1e-3, show_default=True,
-              help="Force-biased contraction rate τ (slower is denser).")
+@click.option(
+    "--contraction-rate",
+    type=positive(float),
+    default=1e-3,
+    show_default=True,
+    help="Force-biased contraction rate τ (slower is denser).",
+)
 @output_path()
 @output_options
 def generate_fb(n, d, distribution, ratio, std, seed, contraction_rate, output, out):
@@ -208,23 +261,30 @@ def generate_fb(n, d, distribution, ratio, std, seed, contraction_rate, output, 
     import calippso
     import generators
 
-    sizes = make_diameters(n, distribution, ratio, std, seed)
-    generation = generators.force_biased(sizes, d, contraction_rate=contraction_rate, seed=seed,
-                                         progress=out.progress)
+    sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
+    generation = generators.force_biased(
+        sizes, d, contraction_rate=contraction_rate, seed=seed, progress=out.progress
+    )
     return _generation_record("fb", generation, calippso.write(generation.packing, output))
 
 
 @generate.command("mls")
 @diameter_options
-@click.option("--input", "input_path", type=click.Path(path_type=Path),
-              help="Start configuration (default: random centres at phi = 0.3).")
-@click.option("--final-rate", type=positive(float), default=1e-4, show_default=True,
-              help="Final growth rate.")
+@click.option(
+    "--input",
+    "input_path",
+    type=click.Path(path_type=Path),
+    help="Start configuration (default: random centres at phi = 0.3).",
+)
+@click.option(
+    "--final-rate", type=positive(float), default=1e-4, show_default=True, help="Final growth rate."
+)
 @checkpoint_option
 @output_path()
 @output_options
-def generate_mls(n, d, distribution, ratio, std, seed, input_path, final_rate, checkpoint, output,
-                 out):
+def generate_mls(
+    n, d, distribution, ratio, std, seed, input_path, final_rate, checkpoint, output, out
+):
     """Closest jammed configuration (modified LS) of a start configuration."""
     import calippso
     import generators
@@ -232,41 +292,76 @@ def generate_mls(n, d, distribution, ratio, std, seed, input_path, final_rate, c
     if input_path is not None:
         start = calippso.read(input_path)
     else:
-        start = generators.poisson(make_diameters(n, distribution, ratio, std, seed), d, 0.3, seed)
-    generation = generators.closest_jamming(start, final_rate=final_rate, seed=seed,
-                                            progress=out.progress, checkpoint=checkpoint)
+        sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
+        start = generators.poisson(sizes, d, 0.3, seed)
+    generation = generators.closest_jamming(
+        start, final_rate=final_rate, seed=seed, progress=out.progress, checkpoint=checkpoint
+    )
     return _generation_record("mls", generation, calippso.write(generation.packing, output))
 
 
 @generate.command("spherocylinders")
-@click.option("--n", "n", type=click.IntRange(min=2), default=500, show_default=True,
-              help="Number of particles.")
-@click.option("--aspect-ratio", type=click.FloatRange(min=0), default=0.4, show_default=True,
-              help="Cylinder length over diameter γ = l/d.")
-@click.option("--contraction-rate", type=click.FloatRange(0, 1, min_open=True, max_open=True),
-              default=1e-4, show_default=True, help="Contraction rate τ.")
+@click.option(
+    "--n",
+    "n",
+    type=click.IntRange(min=2),
+    default=500,
+    show_default=True,
+    help="Number of particles.",
+)
+@click.option(
+    "--aspect-ratio",
+    type=click.FloatRange(min=0),
+    default=0.4,
+    show_default=True,
+    help="Cylinder length over diameter γ = l/d.",
+)
+@click.option(
+    "--contraction-rate",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=1e-4,
+    show_default=True,
+    help="Contraction rate τ.",
+)
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
-@click.option("-o", "--output", "output", type=click.Path(dir_okay=False, path_type=Path),
-              required=True, help="Output extended XYZ file (.xyz) with orientations.")
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="Output extended XYZ file (.xyz) with orientations.",
+)
 @output_options
 def generate_spherocylinders(n, aspect_ratio, contraction_rate, seed, output, out):
     """Force-biased packing of spherocylinders (d = 3), written as extended XYZ."""
     from generators import spherocylinders
 
     if output.suffix.lower() != ".xyz":
-        raise click.BadParameter("spherocylinders are written as extended XYZ: use a .xyz name",
-                                 param_hint="'-o'")
-    generation = spherocylinders.force_biased(n, aspect_ratio, contraction_rate=contraction_rate,
-                                              seed=seed, progress=out.progress)
+        raise click.BadParameter(
+            "spherocylinders are written as extended XYZ: use a .xyz name", param_hint="'-o'"
+        )
+    generation = spherocylinders.force_biased(
+        n, aspect_ratio, contraction_rate=contraction_rate, seed=seed, progress=out.progress
+    )
     spherocylinders.write_xyz(generation.packing, output)
     packing = generation.packing
-    record = {"command": "generate", "protocol": "spherocylinders", "n": n,
-              "aspect_ratio": aspect_ratio, "phi": packing.phi,
-              "nematic_order": packing.nematic_order(), "steps": generation.collisions,
-              "wall_time": generation.wall_time, "status": generation.status,
-              "output": str(output)}
-    text = (f"spherocylinders: N = {n}, aspect ratio {aspect_ratio}, phi = {packing.phi:.6f}, "
-            f"S = {record['nematic_order']:.3f}, {generation.wall_time:.1f} s -> {output}")
+    record = {
+        "command": "generate",
+        "protocol": "spherocylinders",
+        "n": n,
+        "aspect_ratio": aspect_ratio,
+        "phi": packing.phi,
+        "nematic_order": packing.nematic_order(),
+        "steps": generation.collisions,
+        "wall_time": generation.wall_time,
+        "status": generation.status,
+        "output": str(output),
+    }
+    text = (
+        f"spherocylinders: N = {n}, aspect ratio {aspect_ratio}, phi = {packing.phi:.6f}, "
+        f"S = {record['nematic_order']:.3f}, {generation.wall_time:.1f} s -> {output}"
+    )
     return record, text
 
 
@@ -288,9 +383,14 @@ class LPProgress:
             from tqdm.auto import tqdm
 
             self._bar = tqdm(desc=self._desc, unit=" LP", file=sys.stderr)
-        self._bar.set_postfix({"sqrt(G)-1": f"{record['sqrt_gamma_minus_1']:.1e}",
-                               "max|s|": f"{record['max_displacement']:.1e}",
-                               "contacts": record["n_contacts"]}, refresh=False)
+        self._bar.set_postfix(
+            {
+                "sqrt(G)-1": f"{record['sqrt_gamma_minus_1']:.1e}",
+                "max|s|": f"{record['max_displacement']:.1e}",
+                "contacts": record["n_contacts"],
+            },
+            refresh=False,
+        )
         self._bar.update(1)
 
     def close(self) -> None:
@@ -312,21 +412,45 @@ def jam_with_progress(packing, progress: bool, **options):
 def _jam_record(result, source, output: Path | None) -> dict:
     from .ensemble import summary_record
 
-    return {"command": "jam", "input": str(source), **summary_record(result),
-            "output": None if output is None else str(output)}
+    return {
+        "command": "jam",
+        "input": str(source),
+        **summary_record(result),
+        "output": None if output is None else str(output),
+    }
 
 
 @cli.command()
 @click.argument("input_path", metavar="INPUT", type=click.Path(path_type=Path))
 @output_path()
-@click.option("--solver", type=click.Choice(["highs", "clarabel", "cvxpy"]), default="highs",
-              show_default=True, help="LP backend.")
-@click.option("--tol-gamma", type=positive(float), default=1e-12, show_default=True,
-              help="Converged when √Γ − 1 is below this ...")
-@click.option("--tol-s", type=positive(float), default=1e-9, show_default=True,
-              help="... and max |s| over non-rattlers (mean diameters) is below this.")
-@click.option("--max-iters", type=positive(int), default=1000, show_default=True,
-              help="Largest number of LPs.")
+@click.option(
+    "--solver",
+    type=click.Choice(["highs", "clarabel", "cvxpy"]),
+    default="highs",
+    show_default=True,
+    help="LP backend.",
+)
+@click.option(
+    "--tol-gamma",
+    type=positive(float),
+    default=1e-12,
+    show_default=True,
+    help="Converged when √Γ − 1 is below this ...",
+)
+@click.option(
+    "--tol-s",
+    type=positive(float),
+    default=1e-9,
+    show_default=True,
+    help="... and max |s| over non-rattlers (mean diameters) is below this.",
+)
+@click.option(
+    "--max-iters",
+    type=positive(int),
+    default=1000,
+    show_default=True,
+    help="Largest number of LPs.",
+)
 @checkpoint_option
 @output_options
 def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, checkpoint, out):
@@ -337,17 +461,35 @@ def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, checkpoint, out
     import calippso
 
     packing = calippso.read(input_path)
-    result = jam_with_progress(packing, out.progress, solver=solver, tol_gamma=tol_gamma,
-                               tol_s=tol_s, max_iters=max_iters, checkpoint=checkpoint)
+    result = jam_with_progress(
+        packing,
+        out.progress,
+        solver=solver,
+        tol_gamma=tol_gamma,
+        tol_s=tol_s,
+        max_iters=max_iters,
+        checkpoint=checkpoint,
+    )
     written = calippso.write(result, output)
     return _jam_record(result, input_path, written), f"{result.summary()}\n-> {written}"
 
 
 @cli.command()
-@click.argument("results", metavar="RESULT...", nargs=-1, required=True,
-                type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", "output", type=click.Path(file_okay=False, path_type=Path),
-              required=True, help="Folder for the report.")
+@click.argument(
+    "results",
+    metavar="RESULT...",
+    nargs=-1,
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+)
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(file_okay=False, path_type=Path),
+    required=True,
+    help="Folder for the report.",
+)
 @output_options
 def report(results, output, out):
     """Analyse one or more jammed results (.npz/.h5) and write a report to a folder."""
@@ -355,8 +497,10 @@ def report(results, output, out):
 
     loaded = [read_result(path) for path in results]
     page = make_report(loaded, output)
-    return ({"command": "report", "results": [str(p) for p in results], "report": str(page)},
-            f"report of {len(loaded)} packing(s) -> {page}")
+    return (
+        {"command": "report", "results": [str(p) for p in results], "report": str(page)},
+        f"report of {len(loaded)} packing(s) -> {page}",
+    )
 
 
 def make_report(results: list, folder: Path) -> Path:
@@ -392,58 +536,145 @@ def convert(source, target, out):
     written = calippso.write(obj, target)
     packing = getattr(obj, "packing", obj)
     kind = "result" if obj is not packing else "packing"
-    return ({"command": "convert", "input": str(source), "output": str(written), "kind": kind,
-             "n": packing.n, "d": packing.d},
-            f"{kind} N = {packing.n}, d = {packing.d}: {source} -> {written}")
+    return (
+        {
+            "command": "convert",
+            "input": str(source),
+            "output": str(written),
+            "kind": kind,
+            "n": packing.n,
+            "d": packing.d,
+        },
+        f"{kind} N = {packing.n}, d = {packing.d}: {source} -> {written}",
+    )
 
 
 @cli.command()
-@click.option("--protocol", type=click.Choice(["ls", "fb", "mls", "poisson"]), default="ls",
-              show_default=True, help="How each start is made (poisson: random, low density).")
+@click.option(
+    "--protocol",
+    type=click.Choice(PROTOCOLS),
+    default="ls",
+    show_default=True,
+    help="How each start is made (poisson: random, low density).",
+)
 @diameter_options
-@click.option("--pressure", type=positive(float), default=1e5, show_default=True,
-              help="LS target reduced pressure.")
-@click.option("--packings", type=positive(int), default=4, show_default=True,
-              help="Number of packings (seeds SEED, SEED+1, ...).")
-@click.option("--solver", type=click.Choice(["highs", "clarabel", "cvxpy"]), default="highs",
-              show_default=True, help="LP backend.")
-@click.option("-o", "--output", "output", type=click.Path(file_okay=False, path_type=Path),
-              required=True, help="Folder for the packings and summary.csv.")
-@click.option("--workers", type=positive(int), default=None,
-              help="Local worker processes (default: the number of cores).")
-@click.option("--scheduler", metavar="ADDRESS", default=None,
-              help="Run on a Dask cluster (e.g. tcp://host:8786) instead of local processes.")
+@click.option(
+    "--pressure",
+    type=positive(float),
+    default=1e5,
+    show_default=True,
+    help="LS target reduced pressure.",
+)
+@click.option(
+    "--packings",
+    type=positive(int),
+    default=4,
+    show_default=True,
+    help="Number of packings (seeds SEED, SEED+1, ...).",
+)
+@click.option(
+    "--solver",
+    type=click.Choice(["highs", "clarabel", "cvxpy"]),
+    default="highs",
+    show_default=True,
+    help="LP backend.",
+)
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(file_okay=False, path_type=Path),
+    required=True,
+    help="Folder for the packings and summary.csv.",
+)
+@click.option(
+    "--workers",
+    type=positive(int),
+    default=None,
+    help="Local worker processes (default: the number of cores).",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDRESS",
+    default=None,
+    help="Run on a Dask cluster (e.g. tcp://host:8786) instead of local processes.",
+)
 @output_options
-def ensemble(protocol, n, d, distribution, ratio, std, seed, pressure, packings, solver, output,
-             workers, scheduler, out):
+def ensemble(
+    protocol,
+    n,
+    d,
+    distribution,
+    ratio,
+    std,
+    seed,
+    pressure,
+    packings,
+    solver,
+    output,
+    workers,
+    scheduler,
+    out,
+):
     """Many independent generate → jam → analyse runs; resumes where a previous run stopped."""
     from . import ensemble as runs
 
-    spec = runs.EnsembleSpec(protocol=protocol, n=n, d=d, distribution=distribution, ratio=ratio,
-                             std=std, pressure=pressure, solver=solver)
+    spec = runs.EnsembleSpec(
+        protocol=protocol,
+        n=n,
+        d=d,
+        distribution=distribution,
+        ratio=ratio,
+        std=std,
+        pressure=pressure,
+        solver=solver,
+    )
     seeds = range(seed, seed + packings)
     if scheduler is not None:
-        table = runs.run_on_scheduler(spec, packings, seeds=seeds, out_dir=output,
-                                      address=scheduler, progress=out.progress)
+        table = runs.run_on_scheduler(
+            spec, packings, seeds=seeds, out_dir=output, address=scheduler, progress=out.progress
+        )
     else:
-        table = runs.run(spec, packings, seeds=seeds, out_dir=output, workers=workers,
-                         progress=out.progress)
+        table = runs.run(
+            spec, packings, seeds=seeds, out_dir=output, workers=workers, progress=out.progress
+        )
     failed = [row for row in table if row["state"] == "failed"]
-    record = {"command": "ensemble", "out_dir": str(output), "summary": str(output / runs.SUMMARY),
-              "packings": len(table), "failed": len(failed), "rows": table}
-    text = (f"{len(table) - len(failed)} of {len(table)} packings done, summary in "
-            f"{output / runs.SUMMARY}")
+    record = {
+        "command": "ensemble",
+        "out_dir": str(output),
+        "summary": str(output / runs.SUMMARY),
+        "packings": len(table),
+        "failed": len(failed),
+        "rows": table,
+    }
+    text = (
+        f"{len(table) - len(failed)} of {len(table)} packings done, summary in "
+        f"{output / runs.SUMMARY}"
+    )
     if failed:
         text += "\n" + "\n".join(f"  seed {row['seed']} failed: {row['error']}" for row in failed)
     return record, text
 
 
 @cli.command()
-@click.option("--n", "n", type=click.IntRange(min=16), default=256, show_default=True,
-              help="Number of particles (d = 3, monodisperse).")
+@click.option(
+    "--n",
+    "n",
+    type=click.IntRange(min=16),
+    default=256,
+    show_default=True,
+    help="Number of particles (d = 3, monodisperse).",
+)
 @click.option("--seed", type=click.IntRange(min=0), default=1, show_default=True)
-@click.option("-o", "--output", "output", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("calippso-demo"), show_default=True, help="Folder for the files.")
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("calippso-demo"),
+    show_default=True,
+    help="Folder for the files.",
+)
 @output_options
 def demo(n, seed, output, out):
     """Generate (LS, p = 1e5), jam and report a small d = 3 packing (about a minute)."""
@@ -452,11 +683,17 @@ def demo(n, seed, output, out):
 
     start = time.perf_counter()
     out.say(f"1/3 Lubachevsky-Stillinger compression of N = {n} spheres in d = 3 to p = 1e5")
-    generation = generators.lubachevsky_stillinger(generators.diameters.monodisperse(n), d=3,
-                                                   target_pressure=1e5, seed=seed,
-                                                   progress=out.progress)
+    generation = generators.lubachevsky_stillinger(
+        generators.diameters.monodisperse(n),
+        d=3,
+        target_pressure=1e5,
+        seed=seed,
+        progress=out.progress,
+    )
     packing_path = calippso.write(generation.packing, output / "start.npz")
-    out.say(f"    phi = {generation.packing.phi:.6f} in {generation.wall_time:.1f} s -> {packing_path}")
+    out.say(
+        f"    phi = {generation.packing.phi:.6f} in {generation.wall_time:.1f} s -> {packing_path}"
+    )
     out.say("2/3 CALiPPSO jamming (one LP per iteration)")
     result = jam_with_progress(generation.packing, out.progress)
     result_path = calippso.write(result, output / "jammed.npz")
@@ -469,8 +706,12 @@ def demo(n, seed, output, out):
         page, note = None, f"no report ({' '.join(str(error).split())})"
     else:
         note = f"report -> {page}"
-    record = {"command": "demo", **_jam_record(result, packing_path, result_path),
-              "report": page, "total_wall_time": time.perf_counter() - start}
+    record = {
+        "command": "demo",
+        **_jam_record(result, packing_path, result_path),
+        "report": page,
+        "total_wall_time": time.perf_counter() - start,
+    }
     return record, f"demo done in {record['total_wall_time']:.0f} s: {note}"
 
 
@@ -493,8 +734,9 @@ def main(argv: list[str] | None = None) -> int:
         click.echo(f"error: {_one_line(error.format_message())}", err=True)
         return EXIT_DATA
     except NotConverged as error:
-        click.echo(f"error: jamming did not converge (result written): {_one_line(error)}",
-                   err=True)
+        click.echo(
+            f"error: jamming did not converge (result written): {_one_line(error)}", err=True
+        )
         return EXIT_NOT_CONVERGED
     except (click.exceptions.Abort, KeyboardInterrupt):
         click.echo("error: interrupted", err=True)

@@ -32,17 +32,47 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["COLUMNS", "EnsembleSpec", "SUMMARY", "run", "run_on_scheduler", "run_one",
-           "summary_record"]
+__all__ = [
+    "COLUMNS",
+    "DISTRIBUTIONS",
+    "EnsembleSpec",
+    "PROTOCOLS",
+    "SUMMARY",
+    "make_diameters",
+    "run",
+    "run_on_scheduler",
+    "run_one",
+    "summary_record",
+]
 
 #: Name of the summary table written in `out_dir`.
 SUMMARY = "summary.csv"
 
 #: Columns of the summary table, in order.
-COLUMNS = ("seed", "state", "file", "n", "d", "start_phi", "start_reduced_pressure",
-           "generation_wall_time", "phi", "converged", "iterations", "isostatic",
-           "isostaticity_gap", "n_contacts", "n_stable", "rattler_fraction", "n_bucklers",
-           "force_balance", "wall_time", "solver", "status", "error")
+COLUMNS = (
+    "seed",
+    "state",
+    "file",
+    "n",
+    "d",
+    "start_phi",
+    "start_reduced_pressure",
+    "generation_wall_time",
+    "phi",
+    "converged",
+    "iterations",
+    "isostatic",
+    "isostaticity_gap",
+    "n_contacts",
+    "n_stable",
+    "rattler_fraction",
+    "n_bucklers",
+    "force_balance",
+    "wall_time",
+    "solver",
+    "status",
+    "error",
+)
 
 PROTOCOLS = ("ls", "fb", "mls", "poisson")
 DISTRIBUTIONS = ("monodisperse", "bidisperse", "lognormal")
@@ -89,7 +119,9 @@ class EnsembleSpec:
         if self.protocol not in PROTOCOLS:
             raise ValueError(f"protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
         if self.distribution not in DISTRIBUTIONS:
-            raise ValueError(f"distribution must be one of {DISTRIBUTIONS}, got {self.distribution!r}")
+            raise ValueError(
+                f"distribution must be one of {DISTRIBUTIONS}, got {self.distribution!r}"
+            )
         if int(self.n) < 2 or int(self.d) < 2:
             raise ValueError(f"need n >= 2 and d >= 2, got n = {self.n}, d = {self.d}")
         for name in ("ratio", "std", "pressure", "phi"):
@@ -107,14 +139,19 @@ class EnsembleSpec:
         return cls(**spec)
 
 
-def _diameters(spec: EnsembleSpec, seed: int) -> np.ndarray:
+def make_diameters(
+    n: int, distribution: str, *, ratio: float = 1.4, std: float = 0.1, seed: int = 0
+) -> np.ndarray:
+    """Diameters from `generators.diameters` by distribution name (see `DISTRIBUTIONS`)."""
     from generators import diameters
 
-    if spec.distribution == "bidisperse":
-        return diameters.bidisperse(spec.n, ratio=spec.ratio, seed=seed)
-    if spec.distribution == "lognormal":
-        return diameters.lognormal(spec.n, std=spec.std, seed=seed)
-    return diameters.monodisperse(spec.n)
+    if distribution == "bidisperse":
+        return diameters.bidisperse(n, ratio=ratio, seed=seed)
+    if distribution == "lognormal":
+        return diameters.lognormal(n, std=std, seed=seed)
+    if distribution == "monodisperse":
+        return diameters.monodisperse(n)
+    raise ValueError(f"distribution must be one of {DISTRIBUTIONS}, got {distribution!r}")
 
 
 def generate_start(spec: EnsembleSpec, seed: int, checkpoint: Path | None = None):
@@ -126,10 +163,11 @@ def generate_start(spec: EnsembleSpec, seed: int, checkpoint: Path | None = None
 
     from .neighbors import min_gap
 
-    sizes = _diameters(spec, seed)
+    sizes = make_diameters(spec.n, spec.distribution, ratio=spec.ratio, std=spec.std, seed=seed)
     if spec.protocol == "ls":
-        made = generators.lubachevsky_stillinger(sizes, d=spec.d, target_pressure=spec.pressure,
-                                                 seed=seed, checkpoint=checkpoint)
+        made = generators.lubachevsky_stillinger(
+            sizes, d=spec.d, target_pressure=spec.pressure, seed=seed, checkpoint=checkpoint
+        )
     elif spec.protocol == "fb":
         made = generators.force_biased(sizes, spec.d, seed=seed)
     elif spec.protocol == "mls":
@@ -148,14 +186,23 @@ def summary_record(result) -> dict:
     """The numbers that describe one `JammingResult` (JSON- and CSV-ready)."""
     from .analysis.forces import bucklers
 
-    return {"n": result.packing.n, "d": result.d, "phi": result.phi,
-            "converged": bool(result.converged), "iterations": int(result.iterations),
-            "isostatic": bool(result.isostatic), "isostaticity_gap": int(result.isostaticity_gap),
-            "n_contacts": result.n_contacts, "n_stable": result.n_stable,
-            "rattler_fraction": result.rattler_fraction,
-            "n_bucklers": int(np.count_nonzero(bucklers(result))),
-            "force_balance": float(result.force_balance), "wall_time": float(result.wall_time),
-            "solver": result.solver, "status": result.status}
+    return {
+        "n": result.packing.n,
+        "d": result.d,
+        "phi": result.phi,
+        "converged": bool(result.converged),
+        "iterations": int(result.iterations),
+        "isostatic": bool(result.isostatic),
+        "isostaticity_gap": int(result.isostaticity_gap),
+        "n_contacts": result.n_contacts,
+        "n_stable": result.n_stable,
+        "rattler_fraction": result.rattler_fraction,
+        "n_bucklers": int(np.count_nonzero(bucklers(result))),
+        "force_balance": float(result.force_balance),
+        "wall_time": float(result.wall_time),
+        "solver": result.solver,
+        "status": result.status,
+    }
 
 
 def packing_file(out_dir: Path, seed: int) -> Path:
@@ -168,8 +215,12 @@ def _row_from_file(path: Path, seed: int) -> dict:
 
     with np.load(path, allow_pickle=False) as data:
         arrays = {key: data[key] for key in data.files}
-    row = {"seed": seed, "state": "done", "file": path.name,
-           **summary_record(JammingResult.from_arrays(arrays))}
+    row = {
+        "seed": seed,
+        "state": "done",
+        "file": path.name,
+        **summary_record(JammingResult.from_arrays(arrays)),
+    }
     for key in ("start_phi", "start_reduced_pressure", "generation_wall_time"):
         row[key] = float(arrays[key]) if key in arrays else float("nan")
     return row
@@ -192,11 +243,15 @@ def run_one(spec: EnsembleSpec | dict, seed: int, out_dir: str | os.PathLike) ->
     try:
         spec = EnsembleSpec.of(spec)
         start, pressure, seconds = generate_start(spec, seed, checkpoints[0])
-        result = calippso.jam(start, solver=spec.solver, checkpoint=checkpoints[1],
-                              **spec.jam_options)
-        extra = {"seed": np.array(seed), "start_phi": np.array(start.phi),
-                 "start_reduced_pressure": np.array(pressure),
-                 "generation_wall_time": np.array(seconds)}
+        result = calippso.jam(
+            start, solver=spec.solver, checkpoint=checkpoints[1], **spec.jam_options
+        )
+        extra = {
+            "seed": np.array(seed),
+            "start_phi": np.array(start.phi),
+            "start_reduced_pressure": np.array(pressure),
+            "generation_wall_time": np.array(seconds),
+        }
         save_npz_atomic(path, {**result.to_arrays(), **extra})
         for finished in (error_file, *checkpoints):
             finished.unlink(missing_ok=True)
@@ -244,9 +299,16 @@ def _is_dask(executor) -> bool:
     return type(executor).__module__.split(".")[0] == "distributed"
 
 
-def run(spec: EnsembleSpec | dict, n_packings: int, *, seeds: int | Sequence[int] | None = None,
-        out_dir: str | os.PathLike, executor=None, workers: int | None = None,
-        progress: bool = False) -> list[dict]:
+def run(
+    spec: EnsembleSpec | dict,
+    n_packings: int,
+    *,
+    seeds: int | Sequence[int] | None = None,
+    out_dir: str | os.PathLike,
+    executor=None,
+    workers: int | None = None,
+    progress: bool = False,
+) -> list[dict]:
     """Run an ensemble: one generate → jam → analyse task per seed, resuming earlier runs.
 
     Parameters
@@ -294,7 +356,8 @@ def run(spec: EnsembleSpec | dict, n_packings: int, *, seeds: int | Sequence[int
         if owned:
             executor = concurrent.futures.ProcessPoolExecutor(
                 max_workers=min(workers or os.cpu_count() or 1, len(pending)),
-                mp_context=multiprocessing.get_context("spawn"))
+                mp_context=multiprocessing.get_context("spawn"),
+            )
         try:
             for seed, row in _completed(executor, spec, pending, out_dir):
                 rows[seed] = row
@@ -314,13 +377,16 @@ def _completed(executor, spec: EnsembleSpec, seeds: list[int], out_dir: Path):
     if _is_dask(executor):
         from distributed import as_completed
 
-        futures = {executor.submit(run_one, asdict(spec), seed, str(out_dir), pure=False): seed
-                   for seed in seeds}
+        futures = {
+            executor.submit(run_one, asdict(spec), seed, str(out_dir), pure=False): seed
+            for seed in seeds
+        }
     else:
         from concurrent.futures import as_completed
 
-        futures = {executor.submit(run_one, asdict(spec), seed, str(out_dir)): seed
-                   for seed in seeds}
+        futures = {
+            executor.submit(run_one, asdict(spec), seed, str(out_dir)): seed for seed in seeds
+        }
     for future in as_completed(list(futures)):
         seed = futures[future]
         try:
@@ -337,9 +403,16 @@ def _bar(enabled: bool, total: int, initial: int):
     return tqdm(total=total, initial=initial, desc="packings", unit=" packing")
 
 
-def run_on_scheduler(spec: EnsembleSpec | dict, n_packings: int, *, address: str,
-                     seeds: int | Sequence[int] | None = None, out_dir: str | os.PathLike,
-                     progress: bool = False, timeout: float = 10.0) -> list[dict]:
+def run_on_scheduler(
+    spec: EnsembleSpec | dict,
+    n_packings: int,
+    *,
+    address: str,
+    seeds: int | Sequence[int] | None = None,
+    out_dir: str | os.PathLike,
+    progress: bool = False,
+    timeout: float = 10.0,
+) -> list[dict]:
     """`run` on the Dask cluster whose scheduler is at `address` (needs ``distributed``).
 
     `out_dir` must be a folder that the workers and this process share (the same machine,
@@ -348,11 +421,14 @@ def run_on_scheduler(spec: EnsembleSpec | dict, n_packings: int, *, address: str
     try:
         from distributed import Client
     except ImportError:
-        raise ValueError("--scheduler needs dask.distributed: pip install 'calippso[ensemble]'") from None
+        raise ValueError(
+            "--scheduler needs dask.distributed: pip install 'calippso[ensemble]'"
+        ) from None
     try:
         client = Client(address, timeout=f"{timeout}s")
     except (OSError, TimeoutError) as error:
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {error}") from None
     with client:
-        return run(spec, n_packings, seeds=seeds, out_dir=out_dir, executor=client,
-                   progress=progress)
+        return run(
+            spec, n_packings, seeds=seeds, out_dir=out_dir, executor=client, progress=progress
+        )

@@ -20,20 +20,25 @@ def main(argv=None) -> None:
     parser.add_argument("--n", type=int, default=256, help="spheres per packing")
     parser.add_argument("--tiny", action="store_true", help="2 packings of N = 32")
     parser.add_argument("--out", type=Path, default=Path("ensemble"), help="output folder")
-    parser.add_argument("--scheduler", help="address of a Dask scheduler (default: local processes)")
+    parser.add_argument(
+        "--scheduler", help="address of a Dask scheduler (default: local processes)"
+    )
     args = parser.parse_args(argv)
     packings, n = (2, 32) if args.tiny else (args.packings, args.n)
 
     spec = ensemble.EnsembleSpec(protocol="ls", n=n, d=3, pressure=1e5)
     if args.scheduler:
-        rows = ensemble.run_on_scheduler(spec, packings, address=args.scheduler, seeds=1,
-                                         out_dir=args.out)
+        rows = ensemble.run_on_scheduler(
+            spec, packings, address=args.scheduler, seeds=1, out_dir=args.out
+        )
     else:
         rows = ensemble.run(spec, packings, seeds=1, out_dir=args.out, workers=2)
     for row in rows:
         if row["state"] == "done":
-            print(f"seed {row['seed']}: phi_J = {row['phi']:.6f}, {row['n_contacts']} contacts, "
-                  f"isostatic = {row['isostatic']}")
+            print(
+                f"seed {row['seed']}: phi_J = {row['phi']:.6f}, {row['n_contacts']} contacts, "
+                f"isostatic = {row['isostatic']}"
+            )
         else:
             print(f"seed {row['seed']}: failed ({row['error']})")
     print(f"summary -> {args.out / ensemble.SUMMARY}")

@@ -1,7 +1,7 @@
 """Jam an LS packing and write its report: force and gap distributions, contact numbers.
 
-    python examples/force_gap_report.py                       # N = 512, d = 3
-    python examples/force_gap_report.py --tiny --out /tmp/r   # N = 64
+python examples/force_gap_report.py                       # N = 512, d = 3
+python examples/force_gap_report.py --tiny --out /tmp/r   # N = 64
 """
 
 import argparse
@@ -20,8 +20,9 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     n = 64 if args.tiny else args.n
 
-    start = generators.lubachevsky_stillinger(generators.diameters.monodisperse(n), d=3,
-                                              target_pressure=1e5, seed=args.seed)
+    start = generators.lubachevsky_stillinger(
+        generators.diameters.monodisperse(n), d=3, target_pressure=1e5, seed=args.seed
+    )
     result = calippso.jam(start.packing)
     print(result.summary())
     page = calippso.report(result, args.out)

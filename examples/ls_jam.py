@@ -20,15 +20,19 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--d", type=int, choices=sorted(DEFAULT_N), default=3, help="dimension")
     parser.add_argument("--n", type=int, help="number of spheres (default by d: 512, 256, 256)")
-    parser.add_argument("--tiny", action="store_true", help="N = 64 (128 in d = 5), for a quick check")
+    parser.add_argument(
+        "--tiny", action="store_true", help="N = 64 (128 in d = 5), for a quick check"
+    )
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args(argv)
     n = TINY_N[args.d] if args.tiny else args.n or DEFAULT_N[args.d]
 
     sizes = generators.diameters.monodisperse(n)
     start = generators.lubachevsky_stillinger(sizes, d=args.d, target_pressure=1e5, seed=args.seed)
-    print(f"LS: phi = {start.packing.phi:.6f}, p = {start.reduced_pressure:.3g}, "
-          f"{start.wall_time:.1f} s")
+    print(
+        f"LS: phi = {start.packing.phi:.6f}, p = {start.reduced_pressure:.3g}, "
+        f"{start.wall_time:.1f} s"
+    )
     result = calippso.jam(start.packing)
     print(result.summary())
 

@@ -22,8 +22,10 @@ def main(argv=None) -> None:
 
     sizes = generators.diameters.bidisperse(n, ratio=1.4, seed=args.seed)
     start = generators.lubachevsky_stillinger(sizes, d=2, target_pressure=1e5, seed=args.seed)
-    print(f"LS: phi = {start.packing.phi:.6f}, p = {start.reduced_pressure:.3g}, "
-          f"{start.wall_time:.1f} s")
+    print(
+        f"LS: phi = {start.packing.phi:.6f}, p = {start.reduced_pressure:.3g}, "
+        f"{start.wall_time:.1f} s"
+    )
     result = calippso.jam(start.packing)
     print(result.summary())
 

@@ -23,8 +23,10 @@ def main(argv=None) -> None:
 
     points = generators.poisson(generators.diameters.monodisperse(n), 3, phi=0.3, seed=args.seed)
     mls = generators.closest_jamming(points, seed=args.seed)
-    print(f"MLS: phi = {mls.packing.phi:.6f}, p = {mls.reduced_pressure:.3g}, "
-          f"{mls.wall_time:.1f} s ({mls.status})")
+    print(
+        f"MLS: phi = {mls.packing.phi:.6f}, p = {mls.reduced_pressure:.3g}, "
+        f"{mls.wall_time:.1f} s ({mls.status})"
+    )
     result = calippso.jam(mls.packing)
     print(result.summary())
     print(f"CALiPPSO moved phi by {result.phi - mls.packing.phi:+.2e}")

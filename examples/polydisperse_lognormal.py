@@ -1,7 +1,7 @@
 """Jam a polydisperse packing: log-normal diameters (std 0.2, mean 1), force-biased start.
 
-    python examples/polydisperse_lognormal.py          # N = 512, d = 3
-    python examples/polydisperse_lognormal.py --tiny   # N = 64
+python examples/polydisperse_lognormal.py          # N = 512, d = 3
+python examples/polydisperse_lognormal.py --tiny   # N = 64
 """
 
 import argparse
@@ -13,7 +13,9 @@ import generators
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=512, help="number of spheres")
-    parser.add_argument("--std", type=float, default=0.2, help="standard deviation of the diameters")
+    parser.add_argument(
+        "--std", type=float, default=0.2, help="standard deviation of the diameters"
+    )
     parser.add_argument("--tiny", action="store_true", help="N = 64, for a quick check")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args(argv)
@@ -21,8 +23,9 @@ def main(argv=None) -> None:
 
     sizes = generators.diameters.lognormal(n, std=args.std, seed=args.seed)
     start = generators.force_biased(sizes, 3, contraction_rate=1e-3, seed=args.seed)
-    print(f"FB: phi = {start.packing.phi:.6f} after {start.collisions} steps, "
-          f"{start.wall_time:.1f} s")
+    print(
+        f"FB: phi = {start.packing.phi:.6f} after {start.collisions} steps, {start.wall_time:.1f} s"
+    )
     result = calippso.jam(start.packing)
     print(result.summary())
 

@@ -23,7 +23,9 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     n = 48 if args.tiny else args.n
 
-    points = generators.poisson(generators.diameters.monodisperse(n), args.d, phi=0.3, seed=args.seed)
+    points = generators.poisson(
+        generators.diameters.monodisperse(n), args.d, phi=0.3, seed=args.seed
+    )
     gap, _ = min_gap(points.positions, points.diameters, points.box)
     start = points.scaled_to_phi(points.phi * min(1.0, (1 + gap) * (1 - 1e-9)) ** args.d)
     print(f"random start: phi = {start.phi:.3g} (no overlap)")

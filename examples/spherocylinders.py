@@ -1,7 +1,7 @@
 """A random dense packing of spherocylinders (force-biased, Bargiel), written for OVITO.
 
-    python examples/spherocylinders.py                     # N = 500, aspect ratio 0.4
-    python examples/spherocylinders.py --tiny --out /tmp   # N = 100
+python examples/spherocylinders.py                     # N = 500, aspect ratio 0.4
+python examples/spherocylinders.py --tiny --out /tmp   # N = 100
 """
 
 import argparse
@@ -13,7 +13,9 @@ from generators import spherocylinders
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=500, help="number of particles")
-    parser.add_argument("--aspect-ratio", type=float, default=0.4, help="cylinder length / diameter")
+    parser.add_argument(
+        "--aspect-ratio", type=float, default=0.4, help="cylinder length / diameter"
+    )
     parser.add_argument("--tiny", action="store_true", help="N = 100 and a fast contraction")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("."), help="folder for the .xyz file")
@@ -23,8 +25,10 @@ def main(argv=None) -> None:
     made = spherocylinders.force_biased(n, args.aspect_ratio, contraction_rate=rate, seed=args.seed)
     packing = made.packing
     path = spherocylinders.write_xyz(packing, args.out / "spherocylinders.xyz")
-    print(f"N = {n}, aspect ratio {args.aspect_ratio}: phi = {packing.phi:.4f}, "
-          f"nematic order S = {packing.nematic_order():.3f}, {made.wall_time:.1f} s -> {path}")
+    print(
+        f"N = {n}, aspect ratio {args.aspect_ratio}: phi = {packing.phi:.4f}, "
+        f"nematic order S = {packing.nematic_order():.3f}, {made.wall_time:.1f} s -> {path}"
+    )
 
 
 if __name__ == "__main__":

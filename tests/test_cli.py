@@ -24,14 +24,44 @@ def _run(capfd, *argv) -> tuple[int, str, str]:
 def start_2d(tmp_path_factory):
     """A small bidisperse LS packing in d = 2, made through the CLI."""
     path = tmp_path_factory.mktemp("cli") / "start.npz"
-    assert main(["generate", "ls", "--n", "32", "--d", "2", "--distribution", "bidisperse",
-                 "--seed", "3", "-o", str(path), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "generate",
+                "ls",
+                "--n",
+                "32",
+                "--d",
+                "2",
+                "--distribution",
+                "bidisperse",
+                "--seed",
+                "3",
+                "-o",
+                str(path),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     return path
 
 
 def test_generate_writes_the_packing_and_a_json_record(capfd, tmp_path):
-    code, out, err = _run(capfd, "generate", "fb", "--n", "24", "--d", "3", "--seed", "1",
-                          "-o", tmp_path / "fb.xyz", "--json")
+    code, out, err = _run(
+        capfd,
+        "generate",
+        "fb",
+        "--n",
+        "24",
+        "--d",
+        "3",
+        "--seed",
+        "1",
+        "-o",
+        tmp_path / "fb.xyz",
+        "--json",
+    )
     assert code == 0
     record = json.loads(out)
     assert record["protocol"] == "fb" and record["n"] == 24
@@ -75,20 +105,27 @@ def _four_d(tmp_path):
     return path
 
 
-@pytest.mark.parametrize("argv, code, message", [
-    (["jam"], 2, "Missing argument"),
-    (["jam", "x.npz"], 2, "Missing option"),
-    (["generate", "ls", "--n", "1", "-o", "x.npz"], 2, "--n"),
-    (["generate", "ls", "--pressure", "-5", "-o", "x.npz"], 2, "--pressure"),
-    (["frobnicate"], 2, "No such command"),
-    (["generate", "spherocylinders", "-o", "rods.npz"], 2, "extended XYZ"),
-    (["generate", "mls", "--input", "{tmp}/missing.npz", "-o", "{tmp}/out.npz"], 1, "no such file"),
-    (["jam", "{tmp}/missing.npz", "-o", "{tmp}/out.npz"], 1, "no such file"),
-    (["jam", "{overlap}", "-o", "{tmp}/out.npz"], 1, "overlap"),
-    (["convert", "{d4}", "{tmp}/d4.xyz"], 1, "d = 4"),
-    (["convert", "{d4}", "{tmp}/d4.pdb"], 1, "unknown output format"),
-    (["report", "{d4}", "-o", "{tmp}/report"], 1, "missing keys"),
-])
+@pytest.mark.parametrize(
+    "argv, code, message",
+    [
+        (["jam"], 2, "Missing argument"),
+        (["jam", "x.npz"], 2, "Missing option"),
+        (["generate", "ls", "--n", "1", "-o", "x.npz"], 2, "--n"),
+        (["generate", "ls", "--pressure", "-5", "-o", "x.npz"], 2, "--pressure"),
+        (["frobnicate"], 2, "No such command"),
+        (["generate", "spherocylinders", "-o", "rods.npz"], 2, "extended XYZ"),
+        (
+            ["generate", "mls", "--input", "{tmp}/missing.npz", "-o", "{tmp}/out.npz"],
+            1,
+            "no such file",
+        ),
+        (["jam", "{tmp}/missing.npz", "-o", "{tmp}/out.npz"], 1, "no such file"),
+        (["jam", "{overlap}", "-o", "{tmp}/out.npz"], 1, "overlap"),
+        (["convert", "{d4}", "{tmp}/d4.xyz"], 1, "d = 4"),
+        (["convert", "{d4}", "{tmp}/d4.pdb"], 1, "unknown output format"),
+        (["report", "{d4}", "-o", "{tmp}/report"], 1, "missing keys"),
+    ],
+)
 def test_errors_are_one_line_with_exit_codes(capfd, tmp_path, argv, code, message):
     names = {"tmp": tmp_path, "overlap": _overlapping(tmp_path), "d4": _four_d(tmp_path)}
     argv = [arg.format(**names) for arg in argv]
@@ -104,8 +141,9 @@ def test_bare_command_shows_help(capfd):
 
 
 def test_not_converged_is_exit_3_and_still_written(capfd, tmp_path, start_2d):
-    code, out, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "r.npz", "--max-iters", "1",
-                          "--json")
+    code, out, err = _run(
+        capfd, "jam", start_2d, "-o", tmp_path / "r.npz", "--max-iters", "1", "--json"
+    )
     assert code == 3 and "did not converge" in err
     assert json.loads(out)["converged"] is False and (tmp_path / "r.npz").exists()
 
@@ -117,8 +155,9 @@ def test_report_and_demo(capfd, tmp_path):
     assert code == 0, err
     record = json.loads(out)
     assert record["converged"] and (tmp_path / "demo" / "jammed.npz").exists()
-    code, out, err = _run(capfd, "report", tmp_path / "demo" / "jammed.npz", "-o",
-                          tmp_path / "again", "--quiet")
+    code, out, err = _run(
+        capfd, "report", tmp_path / "demo" / "jammed.npz", "-o", tmp_path / "again", "--quiet"
+    )
     assert code == 0, err
 
 
@@ -126,8 +165,12 @@ def test_console_entry_points():
     for command in ([sys.executable, "-m", "calippso", "--help"],):
         run = subprocess.run(command, capture_output=True, text=True, timeout=60)
         assert run.returncode == 0 and "generate" in run.stdout
-    run = subprocess.run([sys.executable, "-m", "calippso", "jam", "nowhere.npz", "-o", "x.npz"],
-                         capture_output=True, text=True, timeout=60)
+    run = subprocess.run(
+        [sys.executable, "-m", "calippso", "jam", "nowhere.npz", "-o", "x.npz"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert run.returncode == 1 and run.stderr == "error: no such file or folder: nowhere.npz\n"
 
 

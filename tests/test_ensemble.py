@@ -45,16 +45,38 @@ def test_local_processes_write_resume_and_record_failures(tmp_path):
 
 def test_dask_local_cluster(tmp_path):
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
-                                  protocol="tcp://", host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
+    with distributed.LocalCluster(
+        n_workers=1,
+        threads_per_worker=2,
+        processes=False,
+        protocol="tcp://",
+        host="127.0.0.1",
+        dashboard_address=None,
+    ) as cluster:
         with distributed.Client(cluster) as client:
             rows = ensemble.run(SPEC, 2, seeds=5, out_dir=tmp_path, executor=client)
         assert [row["state"] for row in rows] == ["done", "done"]
         # The CLI's --scheduler path, on the same cluster: one new packing, two resumed.
-        code = main(["ensemble", "--n", "24", "--d", "2", "--distribution", "bidisperse",
-                     "--seed", "5", "--packings", "3", "-o", str(tmp_path),
-                     "--scheduler", cluster.scheduler_address, "--quiet"])
+        code = main(
+            [
+                "ensemble",
+                "--n",
+                "24",
+                "--d",
+                "2",
+                "--distribution",
+                "bidisperse",
+                "--seed",
+                "5",
+                "--packings",
+                "3",
+                "-o",
+                str(tmp_path),
+                "--scheduler",
+                cluster.scheduler_address,
+                "--quiet",
+            ]
+        )
     assert code == 0
     assert [row["state"] for row in _table(tmp_path)] == ["done"] * 3
 
@@ -62,13 +84,29 @@ def test_dask_local_cluster(tmp_path):
 def test_unreachable_scheduler_is_named(tmp_path):
     pytest.importorskip("distributed")
     with pytest.raises(ValueError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:1"):
-        ensemble.run_on_scheduler(SPEC, 1, address="tcp://127.0.0.1:1", out_dir=tmp_path,
-                                  timeout=1)
+        ensemble.run_on_scheduler(SPEC, 1, address="tcp://127.0.0.1:1", out_dir=tmp_path, timeout=1)
 
 
 def test_cli_json_summary_and_spec_checks(tmp_path, capfd):
-    code = main(["ensemble", "--protocol", "poisson", "--n", "16", "--d", "2", "--packings", "1",
-                 "--workers", "1", "-o", str(tmp_path), "--json", "--quiet"])
+    code = main(
+        [
+            "ensemble",
+            "--protocol",
+            "poisson",
+            "--n",
+            "16",
+            "--d",
+            "2",
+            "--packings",
+            "1",
+            "--workers",
+            "1",
+            "-o",
+            str(tmp_path),
+            "--json",
+            "--quiet",
+        ]
+    )
     record = json.loads(capfd.readouterr().out)
     assert code == 0 and record["failed"] == 0 and record["rows"][0]["converged"]
     with pytest.raises(ValueError, match="protocol"):

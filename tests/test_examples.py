@@ -33,8 +33,12 @@ def test_every_example_is_tested():
 def test_example_runs_tiny(tmp_path, argv, expected):
     if argv[0] == "force_gap_report.py":
         pytest.importorskip("matplotlib")
-    command = [sys.executable, str(EXAMPLES / argv[0]), *(a.format(tmp=tmp_path) for a in argv[1:]),
-               "--tiny"]
+    command = [
+        sys.executable,
+        str(EXAMPLES / argv[0]),
+        *(a.format(tmp=tmp_path) for a in argv[1:]),
+        "--tiny",
+    ]
     run = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert run.returncode == 0, run.stderr[-2000:]
     assert expected in run.stdout, run.stdout[-2000:]

@@ -24,11 +24,20 @@ def _result(packing: Packing):
 
     rattlers = np.zeros(packing.n, dtype=bool)
     rattlers[:3] = True
-    return JammingResult(packing=packing, contacts=np.array([[3, 4], [4, 5]]),
-                         forces=np.array([0.5, 1.5]), rattlers=rattlers, converged=True,
-                         status="Converged after 1 LP.", iterations=1, history=empty_history(),
-                         wall_time=0.1, force_balance=1e-12, dual_normalization=1.0,
-                         solver="highs")
+    return JammingResult(
+        packing=packing,
+        contacts=np.array([[3, 4], [4, 5]]),
+        forces=np.array([0.5, 1.5]),
+        rattlers=rattlers,
+        converged=True,
+        status="Converged after 1 LP.",
+        iterations=1,
+        history=empty_history(),
+        wall_time=0.1,
+        force_balance=1e-12,
+        dual_normalization=1.0,
+        solver="highs",
+    )
 
 
 def _assert_same(back: Packing, packing: Packing) -> None:
@@ -49,7 +58,11 @@ def test_round_trip_or_clear_refusal(tmp_path, suffix, d):
         pytest.importorskip("gsd")
     packing = _packing(d)
     path = tmp_path / f"packing{suffix}"
-    holds = suffix in SUFFIXES_ANY_D or (suffix in SUFFIXES_3D and d <= 3) or (suffix == ".xyzd" and d == 3)
+    holds = (
+        suffix in SUFFIXES_ANY_D
+        or (suffix in SUFFIXES_3D and d <= 3)
+        or (suffix == ".xyzd" and d == 3)
+    )
     if not holds:
         with pytest.raises(ValueError, match=f"d = {d}"):
             calippso.write(packing, path)
@@ -75,7 +88,11 @@ def test_full_result_round_trip(tmp_path, suffix):
     np.testing.assert_array_equal(back.forces, result.forces)
     np.testing.assert_array_equal(back.rattlers, result.rattlers)
     assert (back.status, back.solver, back.converged, back.iterations) == (
-        result.status, result.solver, True, 1)
+        result.status,
+        result.solver,
+        True,
+        1,
+    )
 
 
 def test_read_result_refuses_a_bare_packing(tmp_path):
@@ -116,13 +133,14 @@ def test_extxyz_is_read_by_ase(tmp_path):
 
 def test_extxyz_written_by_ase_with_radius(tmp_path):
     ase = pytest.importorskip("ase")
-    import ase.io
+    ase_io = pytest.importorskip("ase.io")
 
     packing = _packing(3)
-    atoms = ase.Atoms("H" * packing.n, positions=packing.positions, cell=np.diag(packing.box),
-                      pbc=True)
+    atoms = ase.Atoms(
+        "H" * packing.n, positions=packing.positions, cell=np.diag(packing.box), pbc=True
+    )
     atoms.new_array("radius", packing.diameters / 2)
-    ase.io.write(tmp_path / "ase.xyz", atoms, format="extxyz")
+    ase_io.write(tmp_path / "ase.xyz", atoms, format="extxyz")
     back = calippso.read(tmp_path / "ase.xyz")
     np.testing.assert_allclose(back.diameters, packing.diameters, atol=1e-8)  # ASE: 8 decimals
     np.testing.assert_allclose(back.box, packing.box)
@@ -144,17 +162,26 @@ def test_gsd_from_another_program_uses_float32_schema(tmp_path):
     np.testing.assert_allclose(packing.diameters, [1.0, 0.5])
 
 
-@pytest.mark.parametrize("text, message", [
-    ("2\nnot a header\nX 0 0 0 1\nX 1 1 1 1\n", "no Lattice"),
-    ('1\nLattice="5 0 0 0 5 0 0 0 5" Properties=species:S:1:pos:R:3\nX 0 0 0\n', "no diameter"),
-    ('1\nLattice="5 1 0 0 5 0 0 0 5" Properties=species:S:1:pos:R:3:diameter:R:1\nX 0 0 0 1\n',
-     "rectangular"),
-    ('2\nLattice="5 0 0 0 5 0 0 0 5" Properties=species:S:1:pos:R:3:diameter:R:1\nX 0 0 0 1\n',
-     "truncated"),
-    ('1\nLattice="5 0 0 0 5 0 0 0 5" Properties=species:S:1:pos:R:3:diameter:R:1\nX 0 0 1\n',
-     "fields where Properties"),
-    ("many\n", "line 1"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("2\nnot a header\nX 0 0 0 1\nX 1 1 1 1\n", "no Lattice"),
+        ('1\nLattice="5 0 0 0 5 0 0 0 5" Properties=species:S:1:pos:R:3\nX 0 0 0\n', "no diameter"),
+        (
+            '1\nLattice="5 1 0 0 5 0 0 0 5" Properties=species:S:1:pos:R:3:diameter:R:1\nX 0 0 0 1\n',
+            "rectangular",
+        ),
+        (
+            '2\nLattice="5 0 0 0 5 0 0 0 5" Properties=species:S:1:pos:R:3:diameter:R:1\nX 0 0 0 1\n',
+            "truncated",
+        ),
+        (
+            '1\nLattice="5 0 0 0 5 0 0 0 5" Properties=species:S:1:pos:R:3:diameter:R:1\nX 0 0 1\n',
+            "fields where Properties",
+        ),
+        ("many\n", "line 1"),
+    ],
+)
 def test_malformed_extxyz_is_named(tmp_path, text, message):
     path = tmp_path / "bad.xyz"
     path.write_text(text)

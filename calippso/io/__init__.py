@@ -31,12 +31,25 @@ __all__ = ["read", "read_result", "write", "SUFFIXES"]
 
 #: Extension → format module name.
 SUFFIXES: dict[str, str] = {
-    ".npz": "npz", ".h5": "hdf5", ".hdf5": "hdf5", ".xyz": "extxyz", ".extxyz": "extxyz",
-    ".gsd": "gsd", ".dat": "skoge_donev", ".txt": "skoge_donev", ".xyzd": "packing_generation",
+    ".npz": "npz",
+    ".h5": "hdf5",
+    ".hdf5": "hdf5",
+    ".xyz": "extxyz",
+    ".extxyz": "extxyz",
+    ".gsd": "gsd",
+    ".dat": "skoge_donev",
+    ".txt": "skoge_donev",
+    ".xyzd": "packing_generation",
 }
 
-_MODULES = {"npz": npz, "hdf5": hdf5, "extxyz": extxyz, "gsd": gsd, "skoge_donev": skoge_donev,
-            "packing_generation": packing_generation}
+_MODULES = {
+    "npz": npz,
+    "hdf5": hdf5,
+    "extxyz": extxyz,
+    "gsd": gsd,
+    "skoge_donev": skoge_donev,
+    "packing_generation": packing_generation,
+}
 
 
 def _format_of(path: Path) -> str:
@@ -48,8 +61,10 @@ def _format_of(path: Path) -> str:
     if suffix == "":
         return "skoge_donev"
     if suffix not in SUFFIXES:
-        raise ValueError(f"unknown file format {suffix!r} for {path}: expected one of "
-                         f"{', '.join(SUFFIXES)} or a PackingGeneration folder")
+        raise ValueError(
+            f"unknown file format {suffix!r} for {path}: expected one of "
+            f"{', '.join(SUFFIXES)} or a PackingGeneration folder"
+        )
     return SUFFIXES[suffix]
 
 
@@ -97,7 +112,9 @@ def read_result(path: str | os.PathLike):
     if kind == "hdf5":
         return hdf5.read_result(path)
     if kind != "npz":
-        raise ValueError(f"{path}: results are stored as .npz or .h5, not {path.suffix or 'no extension'}")
+        raise ValueError(
+            f"{path}: results are stored as .npz or .h5, not {path.suffix or 'no extension'}"
+        )
     try:
         with np.load(path, allow_pickle=False) as data:
             return JammingResult.from_arrays({key: data[key] for key in data.files})
@@ -121,8 +138,9 @@ def write(obj, path: str | os.PathLike) -> Path:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
-        raise ValueError(f"unknown output format {suffix!r} for {path}: expected one of "
-                         f"{', '.join(SUFFIXES)}")
+        raise ValueError(
+            f"unknown output format {suffix!r} for {path}: expected one of {', '.join(SUFFIXES)}"
+        )
     kind = SUFFIXES[suffix]
     if kind in ("npz", "hdf5", "extxyz", "gsd"):
         return _MODULES[kind].write(obj, path)

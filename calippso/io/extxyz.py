@@ -27,6 +27,7 @@ from ._atomic import atomic_path
 
 __all__ = ["read", "write"]
 
+
 def write(obj, path: Path) -> Path:
     """Write a `Packing` or `JammingResult` (d ≤ 3) as extended XYZ.
 
@@ -37,8 +38,10 @@ def write(obj, path: Path) -> Path:
     """
     packing = getattr(obj, "packing", obj).wrapped()
     if packing.d > 3:
-        raise ValueError(f"extended XYZ holds d <= 3, this packing has d = {packing.d}: "
-                         f"write .npz or .h5 instead")
+        raise ValueError(
+            f"extended XYZ holds d <= 3, this packing has d = {packing.d}: "
+            f"write .npz or .h5 instead"
+        )
     n, d = packing.n, packing.d
     positions = np.zeros((n, 3))
     positions[:, :d] = packing.positions
@@ -79,7 +82,9 @@ def _header(line: str, path: Path) -> dict[str, str]:
 def _columns(properties: str, path: Path) -> dict[str, tuple[int, int]]:
     parts = properties.split(":")
     if len(parts) % 3:
-        raise ValueError(f"{path}, line 2: Properties={properties!r} is not name:type:count triples")
+        raise ValueError(
+            f"{path}, line 2: Properties={properties!r} is not name:type:count triples"
+        )
     columns, start = {}, 0
     for name, count in zip(parts[::3], parts[2::3]):
         columns[name.lower()] = (start, int(count))
@@ -110,7 +115,9 @@ def read(path: Path) -> Packing:
     except (IndexError, ValueError):
         raise ValueError(f"{path}, line 1: expected the number of particles") from None
     if len(lines) < n + 2:
-        raise ValueError(f"{path}: truncated, {max(len(lines) - 2, 0)} particle lines where N = {n}")
+        raise ValueError(
+            f"{path}: truncated, {max(len(lines) - 2, 0)} particle lines where N = {n}"
+        )
     fields = _header(lines[1], path)
     if "lattice" not in fields:
         raise ValueError(f"{path}, line 2: no Lattice= (a periodic box is required)")
@@ -130,16 +137,17 @@ def read(path: Path) -> Packing:
     size = "diameter" if "diameter" in columns else "radius" if "radius" in columns else None
     if size is None:
         raise ValueError(f"{path}, line 2: no diameter or radius column in Properties")
-    rows = [line.split() for line in lines[2:2 + n]]
+    rows = [line.split() for line in lines[2 : 2 + n]]
     width = sum(count for _, count in columns.values())
     short = next((k for k, row in enumerate(rows) if len(row) < width), None)
     if short is not None:
-        raise ValueError(f"{path}, line {short + 3}: {len(rows[short])} fields where Properties "
-                         f"needs {width}")
+        raise ValueError(
+            f"{path}, line {short + 3}: {len(rows[short])} fields where Properties needs {width}"
+        )
 
     def column(name: str) -> np.ndarray:
         start, count = columns[name]
-        return np.array([row[start:start + count] for row in rows], dtype=float)
+        return np.array([row[start : start + count] for row in rows], dtype=float)
 
     try:
         positions = column("pos")[:, :d]

@@ -25,7 +25,9 @@ def _gsd_hoomd():
     try:
         import gsd.hoomd
     except ImportError:
-        raise ValueError("GSD files need the gsd package: pip install 'calippso[formats]'") from None
+        raise ValueError(
+            "GSD files need the gsd package: pip install 'calippso[formats]'"
+        ) from None
     return gsd.hoomd
 
 
@@ -40,7 +42,9 @@ def write(obj, path: Path) -> Path:
     hoomd = _gsd_hoomd()
     packing = getattr(obj, "packing", obj).wrapped()
     if packing.d > 3:
-        raise ValueError(f"GSD holds d <= 3, this packing has d = {packing.d}: write .npz or .h5 instead")
+        raise ValueError(
+            f"GSD holds d <= 3, this packing has d = {packing.d}: write .npz or .h5 instead"
+        )
     n, d = packing.n, packing.d
     frame = hoomd.Frame()
     frame.configuration.dimensions = d
@@ -50,8 +54,11 @@ def write(obj, path: Path) -> Path:
     frame.particles.N = n
     frame.particles.position = centred.astype(np.float32)
     frame.particles.diameter = packing.diameters.astype(np.float32)
-    frame.log = {"calippso/positions": packing.positions, "calippso/diameters": packing.diameters,
-                 "calippso/box": packing.box}
+    frame.log = {
+        "calippso/positions": packing.positions,
+        "calippso/diameters": packing.diameters,
+        "calippso/box": packing.box,
+    }
     if hasattr(obj, "rattlers") and hasattr(obj, "contact_numbers"):
         frame.particles.types = ["stable", "rattler"]
         frame.particles.typeid = obj.rattlers.astype(np.uint32)
@@ -85,7 +92,9 @@ def read(path: Path) -> Packing:
         return Packing(log["calippso/positions"], log["calippso/diameters"], log["calippso/box"])
     box = np.asarray(frame.configuration.box, dtype=np.float64)
     if np.any(box[3:] != 0):
-        raise ValueError(f"{path}: tilted (triclinic) boxes are not supported, tilts {box[3:].tolist()}")
+        raise ValueError(
+            f"{path}: tilted (triclinic) boxes are not supported, tilts {box[3:].tolist()}"
+        )
     d = int(frame.configuration.dimensions)
     sides = box[:d]
     positions = np.asarray(frame.particles.position, dtype=np.float64)[:, :d] + 0.5 * sides

@@ -21,7 +21,9 @@ def _h5py():
     try:
         import h5py
     except ImportError:
-        raise ValueError("HDF5 files need the h5py package: pip install 'calippso[formats]'") from None
+        raise ValueError(
+            "HDF5 files need the h5py package: pip install 'calippso[formats]'"
+        ) from None
     return h5py
 
 
@@ -31,7 +33,10 @@ def write(obj, path: Path) -> Path:
     if hasattr(obj, "to_arrays"):
         arrays, kind = obj.to_arrays(), "result"
     else:
-        arrays, kind = {"positions": obj.positions, "diameters": obj.diameters, "box": obj.box}, "packing"
+        arrays, kind = (
+            {"positions": obj.positions, "diameters": obj.diameters, "box": obj.box},
+            "packing",
+        )
     path = Path(path)
     with atomic_path(path) as temporary, h5py.File(temporary, "w") as file:
         file.attrs["calippso_format"] = kind
@@ -49,8 +54,13 @@ def _arrays(path: Path) -> dict:
     try:
         with h5py.File(path, "r") as file:
             arrays = {key: file[key][()] for key in file.keys()}
-            arrays.update({key: np.array(str(value)) for key, value in file.attrs.items()
-                           if key != "calippso_format"})
+            arrays.update(
+                {
+                    key: np.array(str(value))
+                    for key, value in file.attrs.items()
+                    if key != "calippso_format"
+                }
+            )
     except OSError as error:
         raise ValueError(f"{path}: not a readable HDF5 file ({error})") from None
     missing = [k for k in ("positions", "diameters", "box") if k not in arrays]
