@@ -24,7 +24,7 @@ pytestmark = pytest.mark.slow
 @pytest.mark.parametrize("solver", ["highs", "clarabel", "cvxpy"])
 def test_skoge_donev_p1e12_every_backend(shared_data, solver):
     start = calippso.read(shared_data / "skoge_donev_N1000_d3_p1e12.dat")
-    assert start.n == 1000 and overlap_free(start) >= 0
+    assert start.n == 1000 and overlap_free(start) > -1e-14   # round-off only
     result = jam(start, solver=solver)
     assert_jammed(result)
     assert result.solver == solver
