@@ -458,17 +458,18 @@ class _Jammer:
             {**record, "iteration": self.lps_solved, "packing": self.packing()}))
 
     # ----------------------------------------------------------------- Newton stage
-    def _newton(self, network: _Network) -> _Network | None:
+    def _newton(self, network: _Network, retry: bool = False) -> _Network | None:
         """Solve the contact equations of an isostatic network; None unless certified.
 
         Certified means: every force positive and no other pair overlapping beyond
         `NEWTON_OVERLAP_TOLERANCE` (see `calippso.newton`). A network that failed once is not
-        tried again. On success the configuration moves
-        to the certified jamming point and a history record (stage "newton") is added.
+        tried again, unless `retry` (at the end of the loop, from the converged positions).
+        On success the configuration moves to the certified jamming point and a history
+        record (stage "newton") is added.
         """
         order = np.sort(network.i * self.n + network.j)
         key = hashlib.sha256(order.tobytes()).hexdigest()
-        if key in self.failed_networks:
+        if key in self.failed_networks and not retry:
             return None
         start = time.perf_counter()
         refined = refine_isostatic(self.positions, self.diameters, self.box, network.i,
@@ -523,7 +524,7 @@ class _Jammer:
                                 current.vectors / current.distances[:, None], network.forces,
                                 ~network.rattlers)
         if balance > settings.balance_tolerance and network.from_lp and converged:
-            refined = self._newton(network) if settings.newton else None
+            refined = self._newton(network, retry=True) if settings.newton else None
             if refined is not None:
                 network, balance = refined, self.records[-1]["force_balance"]
         if balance > settings.balance_tolerance and network.from_lp:
