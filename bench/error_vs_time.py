@@ -17,7 +17,8 @@ Run from the repository root (minutes: one jam of N = 1024, d = 3 takes ~45 s):
         --tolerances 1e-6:1e-4 1e-12:1e-9 --plot docs/images/error_vs_time.png
 
 Prints a Markdown table; writes the rows to --json and a figure per dimension to --plot
-(the dimension is appended to the file name).
+(the dimension is appended to the file name). `--replot a.json b.json` redraws and reprints
+saved rows without running anything.
 """
 
 from __future__ import annotations
@@ -107,17 +108,24 @@ def plot(rows: list[dict], path: Path) -> list[Path]:
     for d in sorted({r["d"] for r in rows}):
         fig, axes = plt.subplots(2, 2, figsize=(9, 6.5), sharex=True)
         for ax, (key, label) in zip(axes.ravel(), ERRORS.items()):
+            integer = key == "isostaticity_gap_abs"
             for r in (r for r in rows if r["d"] == d):
-                ax.loglog(r["wall_time"], max(r[key], 1e-17), markers.get(r["solver"], "x"),
-                          color=colors[(r["tol_gamma"], r["tol_s"])], ms=7,
-                          mfc="none" if not r["converged"] else None)
+                ax.plot(r["wall_time"], r[key] if integer else max(r[key], 1e-17),
+                        markers.get(r["solver"], "x"),
+                        color=colors[(r["tol_gamma"], r["tol_s"])], ms=7,
+                        mfc="none" if not r["converged"] else None)
+            ax.set_xscale("log")
+            if integer:  # small integers: linear axis
+                ax.set_ylim(-0.5, max(r[key] for r in rows if r["d"] == d) + 1.5)
+            else:
+                ax.set_yscale("log")
             ax.set_ylabel(label)
         for ax in axes[1]:
             ax.set_xlabel("wall time (s)")
         handles = [plt.Line2D([], [], color=colors[t], marker="o", ls="",
                               label=f"tol_gamma = {t[0]:.0e}, tol_s = {t[1]:.0e}")
                    for t in tolerances]
-        handles += [plt.Line2D([], [], color="k", marker=m, ls="", mfc="none", label=s)
+        handles += [plt.Line2D([], [], color="k", marker=m, ls="", label=s)
                     for s, m in markers.items() if any(r["solver"] == s for r in rows)]
         fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=7)
         n = next(r["n"] for r in rows if r["d"] == d)
@@ -143,8 +151,16 @@ def main() -> None:
     parser.add_argument("--max-iters", type=int, default=1000)
     parser.add_argument("--json", type=Path, help="write the rows here")
     parser.add_argument("--plot", type=Path, help="figure path (d is appended to the name)")
+    parser.add_argument("--replot", type=Path, nargs="+",
+                        help="skip the runs: print and plot the rows of these --json files")
     args = parser.parse_args()
 
+    if args.replot:
+        rows = [row for path in args.replot for row in json.loads(path.read_text())]
+        print(table(rows))
+        for path in plot(rows, args.plot) if args.plot else []:
+            print(f"wrote {path}")
+        return
     tolerances = [tuple(float(v) for v in pair.split(":")) for pair in args.tolerances]
     rows = []
     for d in args.dims:
