@@ -42,6 +42,9 @@ CLEANUP_STEP = 1e-3
 #: A pair outside the contact network may overlap by at most this relative gap at a Newton
 #: solution (round-off); more means the network is not the jammed one.
 NEWTON_OVERLAP_TOLERANCE = 1e-12
+#: Pairs closer than this relative gap count as touching when the LP duals are degenerate
+#: (`_Jammer._hyperstatic_network`).
+GEOMETRIC_CONTACT_GAP = 1e-11
 
 
 def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: float = 1e-12,
@@ -527,7 +530,8 @@ class _Jammer:
             refined = self._newton(network, retry=True) if settings.newton else None
             if refined is not None:
                 network, balance = refined, self.records[-1]["force_balance"]
-        if balance > settings.balance_tolerance and network.from_lp:
+        if (balance > settings.balance_tolerance and network.from_lp
+                and not network.rattlers.all()):
             stable = ~network.rattlers
             fixed = network.rattlers.copy()
             if stable.any():
@@ -538,6 +542,8 @@ class _Jammer:
             if cleanup.max_displacement > 0.5 * CLEANUP_STEP:
                 self.notes.append("the force clean-up LP found a floppy motion: the packing "
                                   "is not rigid")
+        if converged:
+            network, balance = self._hyperstatic_network(network, balance)
         forces = network.forces
         if balance > settings.balance_tolerance and forces.size:
             forces, balance = self._polished(network, balance)
@@ -547,6 +553,7 @@ class _Jammer:
         mean_force = forces.mean() if forces.size else 1.0
         self._remove_roundoff_overlaps()
         n_stable = int(self.n - network.rattlers.sum())
+        self.n_stable_final = n_stable
         gap = isostaticity_gap(contacts.shape[0], n_stable, self.d)
         return JammingResult(
             packing=self.packing(), contacts=contacts[order], forces=forces / mean_force,
@@ -556,6 +563,41 @@ class _Jammer:
             history=history_from_records(self.records),
             wall_time=time.perf_counter() - self.start, force_balance=balance,
             dual_normalization=network.normalization, solver=network.solver)
+
+    def _hyperstatic_network(self, network: _Network, balance: float) -> tuple[_Network, float]:
+        """The touching pairs as the contact network, when the LP's duals missed contacts.
+
+        At a degenerate jammed point (crystals, other hyperstatic packings) the LP has many
+        optimal dual solutions, and a vertex solution may put its weight on a few rows only,
+        leaving the others, and particles, looking like non-contacts and rattlers. When the LP
+        network is hypostatic or has no stable particle, and the pairs that touch
+        (h < `GEOMETRIC_CONTACT_GAP`) give a network with more stable particles, the touching
+        network is used instead, with the self-stress nearest to uniform forces (sparse least
+        squares), if that self-stress is positive and balanced. Otherwise the LP network is
+        kept.
+        """
+        n_stable_lp = int(self.n - network.rattlers.sum())
+        lp_gap = isostaticity_gap(network.i.shape[0], n_stable_lp, self.d)
+        if n_stable_lp > 0 and lp_gap >= 0:
+            return network, balance
+        close = self.search.pairs_within(float(self.diameters.max()) * (1.0 + 1e-6))
+        touching = close.subset(close.gaps < GEOMETRIC_CONTACT_GAP)
+        rattlers, kept = remove_rattlers(self.n, self.d, touching.i, touching.j)
+        touching = touching.subset(kept)
+        if np.count_nonzero(~rattlers) <= n_stable_lp:
+            return network, balance
+        normals = touching.vectors / touching.distances[:, None]
+        weights = touching.sigma**2 / touching.distances
+        forces = polish_forces(self.n, touching.i, touching.j, normals, weights,
+                               np.ones(len(touching)))
+        new_balance = force_balance(self.n, touching.i, touching.j, normals, forces, ~rattlers)
+        if forces.min() <= 0 or new_balance > self.settings.balance_tolerance:
+            return network, balance
+        self.notes.append(f"contacts taken from the touching pairs (h < "
+                          f"{GEOMETRIC_CONTACT_GAP:g}): the LP duals are degenerate here; "
+                          f"forces are the self-stress nearest to uniform")
+        return _Network(touching.i, touching.j, forces, rattlers, float(forces @ weights),
+                        network.solver, from_lp=False), new_balance
 
     def _polished(self, network: _Network, balance: float) -> tuple[np.ndarray, float]:
         """Forces refined by least squares on the equilibrium equations, if that helps."""
@@ -594,7 +636,12 @@ class _Jammer:
             head = f"Stopped by the callback after {self.lps_solved} LPs"
         else:
             head = f"Not converged after {self.lps_solved} LPs (max_iters)"
-        tail = "isostatic" if gap == 0 else f"isostaticity gap {gap:+d}"
+        if not self.records or self.n_stable_final == 0:
+            tail = "no stable particle (every particle is a rattler)"
+        elif gap == 0:
+            tail = "isostatic"
+        else:
+            tail = f"{'hyperstatic' if gap > 0 else 'hypostatic'} (isostaticity gap {gap:+d})"
         sentence = (f"{head} (sqrt(Gamma)-1 = {last['sqrt_gamma_minus_1']:.1e}, "
                     f"max|s| = {last['max_displacement']:.1e}); {tail}.")
         notes = self.notes + ([f"{self.retried_lps} LPs in all needed a retry"]

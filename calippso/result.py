@@ -145,8 +145,8 @@ class JammingResult:
 
     @property
     def isostatic(self) -> bool:
-        """True when N_c = d (N_s − 1) + 1."""
-        return self.isostaticity_gap == 0
+        """True when N_c = d (N_s − 1) + 1 with at least one stable particle."""
+        return self.n_stable > 0 and self.isostaticity_gap == 0
 
     @property
     def rattler_fraction(self) -> float:
