@@ -42,6 +42,8 @@ CLEANUP_STEP = 1e-3
 #: A pair outside the contact network may overlap by at most this relative gap at a Newton
 #: solution (round-off); more means the network is not the jammed one.
 NEWTON_OVERLAP_TOLERANCE = 1e-12
+#: The loop stops as stalled (not converged) after this many LPs without progress.
+STALL_LPS = 25
 #: Pairs closer than this relative gap count as touching when the LP duals are degenerate
 #: (`_Jammer._hyperstatic_network`).
 GEOMETRIC_CONTACT_GAP = 1e-11
@@ -237,6 +239,7 @@ class _Jammer:
         self.solver_name = settings.solver
         self.failed_networks: set[str] = set()
         self.retried_lps = 0
+        self.stalled = False
         self.forced = np.zeros((0, 2), dtype=np.int64)
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
         self._check_input_overlaps()
@@ -351,7 +354,9 @@ class _Jammer:
         balance = force_balance(self.n, pairs.i[rows], pairs.j[rows], normals, forces, ~rattlers)
         s = solution.x[:-1].reshape(self.n, self.d)
         free = lp.col_upper[:-1].reshape(self.n, self.d)[:, 0] > 0
-        moving = ~rattlers & free
+        # with no stable particle at all, every particle's step counts: a run is not
+        # converged just because the contact network is empty
+        moving = (~rattlers & free) if (~rattlers).any() else free
         max_displacement = float(np.abs(s[moving]).max(initial=0.0))
         max_contacting = float(np.abs(s[contacting & free]).max(initial=0.0))
         return _Step(lp, solution, rows, rattlers, forces, balance, max_displacement,
@@ -437,6 +442,9 @@ class _Jammer:
                 break
             if converged:
                 break
+            if self._stalled():
+                self.stalled = True
+                break
             # adapt from the bound the accepted LP had (a retry may have used a smaller one)
             self.step = next_step_bound(step_result.lp.step_bound, step_result, settings)
             if (settings.newton and record["isostaticity_gap"] == 0 and record["n_contacts"]
@@ -455,6 +463,16 @@ class _Jammer:
         if network is None:
             raise self._fail(f"no LP was solved (max_iters = {settings.max_iters})")
         return self._finish(network, converged, stopped)
+
+    def _stalled(self) -> bool:
+        """The last `STALL_LPS` LPs gained nothing in Γ and did not shrink the displacements."""
+        lps = [r for r in self.records if r["stage"] == "lp"][-STALL_LPS:]
+        if len(lps) < STALL_LPS:
+            return False
+        gains = [r["sqrt_gamma_minus_1"] for r in lps]
+        steps = [r["max_displacement"] for r in lps]
+        return (max(gains) < self.settings.tol_gamma
+                and min(steps[-5:]) >= 0.5 * min(steps[:5]))
 
     def _stop_requested(self, record: dict) -> bool:
         return self.callback is not None and bool(self.callback(
@@ -634,6 +652,9 @@ class _Jammer:
             head = f"Jammed: converged after {self.lps_solved} LPs"
         elif stopped:
             head = f"Stopped by the callback after {self.lps_solved} LPs"
+        elif self.stalled:
+            head = (f"Stalled after {self.lps_solved} LPs: the last {STALL_LPS} gained nothing "
+                    f"in Gamma and their displacements did not shrink")
         else:
             head = f"Not converged after {self.lps_solved} LPs (max_iters)"
         if not self.records or self.n_stable_final == 0:
