@@ -354,11 +354,11 @@ class _Jammer:
         balance = force_balance(self.n, pairs.i[rows], pairs.j[rows], normals, forces, ~rattlers)
         s = solution.x[:-1].reshape(self.n, self.d)
         free = lp.col_upper[:-1].reshape(self.n, self.d)[:, 0] > 0
-        # with no stable particle at all, every particle's step counts: a run is not
-        # converged just because the contact network is empty
-        moving = (~rattlers & free) if (~rattlers).any() else free
-        max_displacement = float(np.abs(s[moving]).max(initial=0.0))
         max_contacting = float(np.abs(s[contacting & free]).max(initial=0.0))
+        # with no stable particle at all, the steps of particles with a contact count: a run
+        # is not converged just because rattler removal emptied its network
+        max_displacement = (float(np.abs(s[~rattlers & free]).max(initial=0.0))
+                            if (~rattlers).any() else max_contacting)
         return _Step(lp, solution, rows, rattlers, forces, balance, max_displacement,
                      max_contacting, float(np.count_nonzero(~rattlers)) / self.n)
 

@@ -328,11 +328,6 @@ def test_single_rattler_in_a_cage():
     assert result.rattlers[caged]
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "jamming core (since the 'Stalled' stop): the triangular crystal N = 72 with disc 7 at "
-    "half size ends 'Stalled after 25 LPs ... no stable particle (every particle is a "
-    "rattler)', max|s| = 0.1, converged False; before it ended hyperstatic with disc 7 the "
-    "only rattler"))
 def test_single_rattler_in_a_crystal_cage():
     start = lattices.triangular(6)
     diameters = start.diameters.copy()
