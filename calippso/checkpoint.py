@@ -23,10 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from .packing import Packing
-from .result import HISTORY_COLUMNS, history_from_records, save_npz_atomic
+from .atomic import save_npz_atomic
+from .result import HISTORY_COLUMNS, history_from_records
 from .settings import JamSettings
 
-__all__ = ["signature", "save_state", "load_state"]
+__all__ = ["digest", "signature", "save_state", "load_state"]
 
 #: Version of the file layout; a file with another version is refused.
 FORMAT_VERSION = 1
@@ -34,14 +35,20 @@ FORMAT_VERSION = 1
 _IGNORED_SETTINGS = ("verbose", "max_iters")
 
 
-def signature(packing: Packing, settings: JamSettings) -> str:
-    """Digest of the input configuration and of the settings that shape the run."""
+def digest(*arrays: np.ndarray) -> str:
+    """SHA-256 of the shapes and float64 bytes of `arrays`: identifies a configuration."""
     h = hashlib.sha256()
-    for array in (packing.positions, packing.diameters, packing.box):
+    for array in arrays:
         array = np.ascontiguousarray(array, dtype=np.float64)
         h.update(str(array.shape).encode())
         h.update(array.tobytes())
+    return h.hexdigest()
+
+
+def signature(packing: Packing, settings: JamSettings) -> str:
+    """Digest of the input configuration and of the settings that shape the run."""
     options = {k: v for k, v in asdict(settings).items() if k not in _IGNORED_SETTINGS}
+    h = hashlib.sha256(digest(packing.positions, packing.diameters, packing.box).encode())
     h.update(json.dumps(options, sort_keys=True, default=str).encode())
     return h.hexdigest()
 

@@ -234,7 +234,7 @@ def run_one(spec: EnsembleSpec | dict, seed: int, out_dir: str | os.PathLike) ->
     """
     import calippso
 
-    from .result import save_npz_atomic
+    from .atomic import save_npz_atomic
 
     out_dir = Path(out_dir)
     path = packing_file(out_dir, seed)
@@ -269,7 +269,7 @@ def _failed_row(seed: int, error: BaseException) -> dict:
 
 def write_summary(out_dir: Path, rows: Iterable[dict]) -> Path:
     """Write the summary table (rows sorted by seed) atomically; return its path."""
-    from .io._atomic import atomic_path
+    from .atomic import atomic_path
 
     text = io.StringIO()
     writer = csv.DictWriter(text, fieldnames=COLUMNS, restval="", extrasaction="ignore")

@@ -25,12 +25,12 @@ history_<column>            (records,)       one entry per stage, see `HISTORY_C
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from .atomic import save_npz_atomic
 from .packing import Packing
 
 __all__ = ["JammingResult", "load_result", "HISTORY_COLUMNS", "empty_history"]
@@ -256,20 +256,6 @@ class JammingResult:
             dual_normalization=scalar("dual_normalization", float("nan"), float),
             solver=scalar("solver", "", str),
         )
-
-
-def save_npz_atomic(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Write an `.npz` through a temporary file in the same folder, then rename it into place."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "wb") as stream:
-            np.savez(stream, **arrays)
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 def load_result(path: str | os.PathLike) -> JammingResult:

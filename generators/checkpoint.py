@@ -18,29 +18,19 @@ the difference, instead of silently continuing someone else's run.
 
 from __future__ import annotations
 
-import hashlib
 import json
-import os
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from calippso.atomic import save_npz_atomic
+from calippso.checkpoint import digest
+
 __all__ = ["Checkpoint", "digest"]
 
 #: Version of the file layout; a file with another version is refused.
 FORMAT_VERSION = 1
-
-
-def digest(*arrays: np.ndarray) -> str:
-    """SHA-256 of the bytes (and shapes) of float64 arrays: identifies a start configuration."""
-    h = hashlib.sha256()
-    for array in arrays:
-        array = np.ascontiguousarray(array, dtype=np.float64)
-        h.update(str(array.shape).encode())
-        h.update(array.tobytes())
-    return h.hexdigest()
 
 
 class Checkpoint:
@@ -130,19 +120,7 @@ class Checkpoint:
         arrays = {key: np.asarray(value) for key, value in state.items()}
         arrays["_signature"] = np.asarray(self.signature)
         arrays["_version"] = np.asarray(FORMAT_VERSION)
-        folder = self.path.parent
-        folder.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(dir=folder, prefix=f".{self.path.name}.",
-                                             suffix=".tmp")
-        try:
-            with os.fdopen(handle, "wb") as stream:
-                np.savez(stream, **arrays)
-                stream.flush()
-                os.fsync(stream.fileno())
-            os.replace(temporary, self.path)
-        except BaseException:
-            Path(temporary).unlink(missing_ok=True)
-            raise
+        save_npz_atomic(self.path, arrays)
         self._last = time.monotonic()
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..packing import Packing
-from ._atomic import atomic_path
+from ..atomic import atomic_path
 
 __all__ = ["read", "read_result", "write"]
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..packing import Packing
-from ..result import save_npz_atomic
+from ..atomic import save_npz_atomic
 
 
 def read(path: Path) -> Packing:

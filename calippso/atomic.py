@@ -1,4 +1,7 @@
-"""Atomic file writes: write beside the target, then rename into place."""
+"""Atomic file writes: write beside the target, flush to disk, then rename into place.
+
+A process killed at any moment leaves the previous file or the new one, never a torn file.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +10,10 @@ import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+import numpy as np
+
+__all__ = ["atomic_path", "save_npz_atomic"]
 
 
 @contextmanager
@@ -26,3 +33,12 @@ def atomic_path(path: Path) -> Iterator[Path]:
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
+
+
+def save_npz_atomic(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> None:
+    """Write `arrays` to the `.npz` file `path` atomically, flushed to disk before the rename."""
+    with atomic_path(Path(path)) as temporary:
+        with open(temporary, "wb") as stream:
+            np.savez(stream, **arrays)
+            stream.flush()
+            os.fsync(stream.fileno())
