@@ -43,7 +43,6 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin)
         True when inner ≥ outer (no overlap at the nominal size).
     """
     n, d = x.shape
-    s_max = s.max()
     delta = skin * s.mean() * outer
     xb = x.copy()
     start, neighbours = verlet_lists(x, box, s * outer, delta)

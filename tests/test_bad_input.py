@@ -6,7 +6,6 @@ that the message must match (the words a user needs to fix the input).
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
 from pathlib import Path

@@ -293,7 +293,6 @@ def test_real_overlap_is_refused_and_the_documented_repair_works(nearly_jammed):
 
 @pytest.mark.parametrize("aspect", [(1.0, 2.0), (1.0, 1.5, 2.0)], ids=["2d-1x2", "3d-1x1.5x2"])
 def test_rectangular_box(aspect):
-    d = len(aspect)
     start = rsa_in_box(96, aspect, 0.3, seed=5)
     result = jam(start)
     assert_jammed(result)

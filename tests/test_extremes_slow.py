@@ -8,7 +8,6 @@ round-off overlaps (case 7). Run times are listed in docs/stability.md.
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 import calippso
