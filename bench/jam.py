@@ -5,6 +5,7 @@ Lubachevsky–Stillinger generator. Run from the repository root:
 
     python bench/jam.py                 # default set (d = 3, N ~ 1000, HiGHS)
     python bench/jam.py --backends highs clarabel --ls 2:256 3:1024 4:512
+    python bench/jam.py --no-shared --ls --random 3:256:0.2 --set max_step=0.3
 
 Columns: N, d, backend, LPs, total wall time (s), share of it inside the LP solver,
 phi_J, N_c (contacts among stable particles), isostaticity gap, force balance, min gap.
@@ -13,6 +14,8 @@ phi_J, N_c (contacts among stable particles), isostaticity gap, force balance, m
 from __future__ import annotations
 
 import argparse
+import ast
+import sys
 import time
 from pathlib import Path
 
@@ -34,9 +37,31 @@ def ls_input(d: int, n: int, pressure: float, seed: int) -> calippso.Packing:
                                              seed=seed).packing
 
 
-def row(name: str, packing: calippso.Packing, backend: str, max_iters: int) -> str:
+def random_input(d: int, n: int, phi: float, seed: int) -> calippso.Packing:
+    """Random sequential addition of n monodisperse spheres at packing fraction `phi`
+    (the builder the tests use, tests/configurations.py)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from configurations import random_sequential_addition
+
+    return random_sequential_addition(n, d, phi, seed=seed)
+
+
+def parse_options(pairs: list[str]) -> dict:
+    """`key=value` strings as jam options (values parsed as Python literals when possible)."""
+    options = {}
+    for pair in pairs:
+        key, _, value = pair.partition("=")
+        try:
+            options[key] = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            options[key] = value
+    return options
+
+
+def row(name: str, packing: calippso.Packing, backend: str, max_iters: int,
+        options: dict) -> str:
     start = time.perf_counter()
-    result = calippso.jam(packing, solver=backend, max_iters=max_iters)
+    result = calippso.jam(packing, solver=backend, max_iters=max_iters, **options)
     total = time.perf_counter() - start
     history = result.history
     share = history["solver_time"].sum() / total
@@ -54,6 +79,10 @@ def main() -> None:
     parser.add_argument("--pressure", type=float, default=1e5)
     parser.add_argument("--no-shared", action="store_true", help="skip ../shared/data inputs")
     parser.add_argument("--max-iters", type=int, default=500)
+    parser.add_argument("--random", nargs="*", default=[],
+                        help="random starts to generate, as d:N:phi (seed 1)")
+    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                        help="further jam options, e.g. max_step=0.3 newton=False")
     args = parser.parse_args()
 
     inputs = []
@@ -62,13 +91,17 @@ def main() -> None:
     for spec in args.ls:
         d, n = (int(v) for v in spec.split(":"))
         inputs.append((f"our LS d={d} p={args.pressure:g}", ls_input(d, n, args.pressure, 1)))
+    for spec in args.random:
+        d, n, phi = spec.split(":")
+        inputs.append((f"random d={d} phi0={phi}", random_input(int(d), int(n), float(phi), 1)))
+    options = parse_options(args.set)
 
     print(f"{'input':<44} {'N':>6} {'d':>2} {'backend':>8} {'LPs':>4} {'total s':>8} "
           f"{'solver':>6} {'phi_J':>11} {'N_c':>6} {'iso':>4} {'balance':>8} {'min gap':>9} "
           f"{'conv':>4}")
     for name, packing in inputs:
         for backend in args.backends:
-            print(row(name, packing, backend, args.max_iters), flush=True)
+            print(row(name, packing, backend, args.max_iters, options), flush=True)
 
 
 if __name__ == "__main__":

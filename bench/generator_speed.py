@@ -1,6 +1,6 @@
 """Benchmark of the Numba generators: LS collisions per second, FB wall time, compile time.
 
-Run with ``nice -n 10 python bench/generators.py`` (add ``--quick`` to skip N = 10⁴ LS).
+Run with ``nice -n 10 python bench/generator_speed.py`` (add ``--quick`` to skip N = 10⁴ LS).
 CPU seconds (``time.process_time``, one core) are the figure of merit; wall seconds are shown
 as well since the machine may be shared.
 """
@@ -14,13 +14,8 @@ import sys
 import tempfile
 import time
 
-# This file is itself called generators.py: drop its folder from the path so that
-# `import generators` finds the package (the repository root is put first instead).
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path[:] = [os.path.dirname(_HERE)] + [p for p in sys.path if os.path.abspath(p or ".") != _HERE]
-
-import generators  # noqa: E402
-from generators import diameters as dist  # noqa: E402
+import generators
+from generators import diameters as dist
 
 COMPILE_PROBE = """
 import time
