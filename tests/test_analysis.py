@@ -12,7 +12,8 @@ import calippso
 from calippso import Packing
 from calippso.analysis import (PooledSample, analyze, bucklers, contact_statistics,
                                exponent_from_sample, fit_cumulative_power_law, gaps,
-                               localized_contacts, normalized_forces, pooled_forces, pooled_gaps)
+                               localized_contacts, normalized_forces, pooled_forces, pooled_gaps,
+                               window_scan)
 from calippso.packing import minimum_image
 from calippso.result import JammingResult
 
@@ -135,22 +136,36 @@ def test_buckler_forces_follow_cramers_rule(jammed):
         assert np.argmin(f) == np.argmin(minors)
 
 
-def test_localized_forces_are_the_weakest_of_each_buckler(jammed):
+def test_localized_forces_are_the_forces_on_bucklers(jammed):
+    """Default rule: every contact with a buckler at either end is localised."""
+    b = np.flatnonzero(bucklers(jammed))
+    localized = localized_contacts(jammed)
+    touches_buckler = np.isin(jammed.contacts, b).any(axis=1)
+    np.testing.assert_array_equal(localized, touches_buckler)
+    np.testing.assert_array_equal(localized_contacts(jammed, "bucklers"), localized)
+    np.testing.assert_array_equal(localized_contacts(jammed, "all"), localized)  # former name
+    local, extended = pooled_forces(jammed, "localized"), pooled_forces(jammed, "extended")
+    assert len(local) == localized.sum()
+    assert len(local) + len(extended) == jammed.n_contacts
+    np.testing.assert_allclose(np.sort(np.concatenate([local.values, extended.values])),
+                               np.sort(normalized_forces(jammed)))
+    assert analyze(jammed, n_bootstrap=0).rule == "bucklers"
+
+
+def test_weakest_rule_keeps_the_weakest_force_of_each_buckler(jammed):
     weakest = localized_contacts(jammed, "weakest")
-    everything = localized_contacts(jammed, "all")
-    assert np.all(everything[weakest])                 # "all" contains "weakest"
+    everything = localized_contacts(jammed, "bucklers")
+    assert np.all(everything[weakest])                 # "bucklers" contains "weakest"
     b = np.flatnonzero(bucklers(jammed))
     assert b.size >= weakest.sum() >= b.size / 2        # a contact may be weakest of both ends
     for particle in b:
         edges = np.flatnonzero((jammed.contacts == particle).any(axis=1))
         assert weakest[edges[np.argmin(jammed.forces[edges])]]
         assert everything[edges].all()
-    touches_buckler = np.isin(jammed.contacts, b).any(axis=1)
-    np.testing.assert_array_equal(everything, touches_buckler)
-    local, extended = pooled_forces(jammed, "localized"), pooled_forces(jammed, "extended")
+    local = pooled_forces(jammed, "localized", rule="weakest")
+    extended = pooled_forces(jammed, "extended", rule="weakest")
+    assert len(local) == weakest.sum()
     assert len(local) + len(extended) == jammed.n_contacts
-    np.testing.assert_allclose(np.sort(np.concatenate([local.values, extended.values])),
-                               np.sort(normalized_forces(jammed)))
 
 
 # --- fits ------------------------------------------------------------------------------------
@@ -197,6 +212,45 @@ def test_fit_needs_enough_points():
         fit_cumulative_power_law(np.linspace(0.5, 1, 100), upper=0.1)
     with pytest.raises(ValueError, match="upper"):
         fit_cumulative_power_law(np.linspace(0.5, 1, 100), upper=0.0)
+
+
+@pytest.mark.parametrize("method", ["mle", "lsq"])
+def test_both_estimators_recover_the_slope(method):
+    rng = np.random.default_rng(11)
+    x = rng.random(20000) ** (1.0 / 1.42311)
+    fit = fit_cumulative_power_law(x, upper=0.2, method=method, n_bootstrap=100)
+    assert fit.method == method
+    assert fit.slope == pytest.approx(1.42311, abs=0.06)
+    assert fit.interval[0] < 1.42311 < fit.interval[1]
+
+
+def test_likelihood_fit_ignores_what_lies_below_the_window():
+    """A deficit of values below the window biases least squares on log C, not the MLE."""
+    rng = np.random.default_rng(2)
+    x = rng.random(200000) ** (1.0 / 0.6)
+    keep = (x > 1e-3) | (rng.random(x.size) < 0.2)     # 80 % of the values below 1e-3 removed
+    sample = PooledSample.from_values(x[keep])
+    mle = fit_cumulative_power_law(sample, upper=1e-1, min_count=int((x[keep] <= 1e-3).sum()),
+                                   n_bootstrap=50)
+    assert mle.lower == pytest.approx(1e-3, rel=0.05)
+    assert mle.slope == pytest.approx(0.6, abs=0.02)
+    assert mle.interval[0] < 0.6 < mle.interval[1]
+    with pytest.raises(ValueError, match="method"):
+        fit_cumulative_power_law(sample, upper=0.1, method="chi2")
+
+
+def test_window_scan_is_flat_on_a_pure_power_law():
+    rng = np.random.default_rng(4)
+    sample = PooledSample.from_values(rng.random(100000) ** (1.0 / 1.42311))
+    rows = window_scan("theta_e", sample, upper=0.1)
+    assert [row["upper"] for row in rows] == sorted(row["upper"] for row in rows)
+    assert rows[-1]["upper"] == pytest.approx(1.0)
+    big = [row for row in rows if row["points"] > 2000]
+    assert len(big) >= 5
+    for row in big:
+        assert row["value"] == pytest.approx(0.42311, abs=0.05)
+    assert all(row["upper"] <= 0.05 * 1.0001 for row in window_scan("gamma", sample,
+                                                                    largest=0.05))
 
 
 # --- everything at once ------------------------------------------------------------------------

@@ -10,7 +10,7 @@ cumulative), `fits` (power-law fits of cumulatives, window rule, bootstrap), `ex
 """
 
 from .exponents import (REFERENCE_EXPONENTS, UPPER, Exponent, critical_exponents,
-                        exponent_from_sample)
+                        exponent_from_sample, window_scan)
 from .fits import PowerLawFit, fit_cumulative_power_law
 from .forces import bucklers, localized_contacts, normalized_forces, pooled_forces
 from .gaps import DEFAULT_MAX_GAP, gaps, pooled_gaps
@@ -22,5 +22,5 @@ __all__ = [
     "Analysis", "ContactStatistics", "DEFAULT_MAX_GAP", "Exponent", "PooledSample",
     "PowerLawFit", "REFERENCE_EXPONENTS", "UPPER", "analyze", "bucklers", "contact_statistics",
     "critical_exponents", "exponent_from_sample", "fit_cumulative_power_law", "gaps",
-    "localized_contacts", "normalized_forces", "pooled_forces", "pooled_gaps",
+    "localized_contacts", "normalized_forces", "pooled_forces", "pooled_gaps", "window_scan",
 ]

@@ -23,18 +23,20 @@ from dataclasses import dataclass
 
 from ..result import JammingResult
 from .fits import PowerLawFit, fit_cumulative_power_law
-from .forces import pooled_forces
+from .forces import DEFAULT_RULE, pooled_forces
 from .gaps import DEFAULT_MAX_GAP, pooled_gaps
 from .sample import PooledSample
 
-__all__ = ["REFERENCE_EXPONENTS", "UPPER", "Exponent", "exponent_from_sample",
-           "critical_exponents"]
+__all__ = ["REFERENCE_EXPONENTS", "UPPER", "SCAN_STEPS", "Exponent", "exponent_from_sample",
+           "critical_exponents", "window_scan"]
 
 #: Reference values (Charbonneau et al. 2014; θ_ℓ = 1 − 2γ from Lerner, Düring & Wyart 2013).
 REFERENCE_EXPONENTS: dict[str, float] = {"gamma": 0.41269, "theta_e": 0.42311,
                                          "theta_l": 0.17}
 #: Default upper end of each fit window (gap h, or force in units of the mean force).
 UPPER: dict[str, float] = {"gamma": 1e-2, "theta_e": 0.1, "theta_l": 0.1}
+#: Window tops tried by `window_scan`: UPPER[name] × 10^(k/4) for these k.
+SCAN_STEPS: tuple[int, ...] = (-8, -7, -6, -5, -4, -3, -2, -1, 0, 1, 2, 3, 4)
 #: exponent = offset + sign × slope of the cumulative.
 _FROM_SLOPE: dict[str, tuple[float, float]] = {"gamma": (1.0, -1.0), "theta_e": (-1.0, 1.0),
                                                "theta_l": (-1.0, 1.0)}
@@ -74,7 +76,7 @@ class Exponent:
                 "reference": self.reference, "window": [self.fit.lower, self.fit.upper],
                 "points_in_window": self.fit.n_points, "confidence": self.fit.confidence,
                 "bootstrap_resamples": self.fit.n_bootstrap,
-                "bootstrap_over": self.fit.resampling}
+                "bootstrap_over": self.fit.resampling, "estimator": self.fit.method}
 
 
 def exponent_from_sample(name: str, sample: PooledSample, *, upper: float | None = None,
@@ -89,7 +91,8 @@ def exponent_from_sample(name: str, sample: PooledSample, *, upper: float | None
     upper : float, optional
         Upper end of the fit window (default `UPPER[name]`).
     **fit_options
-        Passed to `fit_cumulative_power_law` (min_count, n_bootstrap, confidence, seed).
+        Passed to `fit_cumulative_power_law` (min_count, method, n_bootstrap, confidence,
+        seed).
     """
     if name not in _FROM_SLOPE:
         raise ValueError(f"name must be one of {tuple(_FROM_SLOPE)}, got {name!r}")
@@ -102,7 +105,7 @@ def exponent_from_sample(name: str, sample: PooledSample, *, upper: float | None
 
 
 def critical_exponents(results: JammingResult | Iterable[JammingResult], *,
-                       max_gap: float = DEFAULT_MAX_GAP, rule: str = "weakest",
+                       max_gap: float = DEFAULT_MAX_GAP, rule: str = DEFAULT_RULE,
                        upper: dict[str, float] | None = None,
                        **fit_options) -> dict[str, Exponent]:
     """γ, θ_e and θ_ℓ pooled over `results`.
@@ -112,7 +115,7 @@ def critical_exponents(results: JammingResult | Iterable[JammingResult], *,
     results : JammingResult or iterable of JammingResult
     max_gap : float
         Largest gap collected (must exceed the gap window's upper end).
-    rule : {"weakest", "all"}
+    rule : {"bucklers", "weakest"}
         Localisation rule (`calippso.analysis.forces.localized_contacts`).
     upper : dict, optional
         Upper ends of the fit windows, by exponent name (defaults: `UPPER`).
@@ -135,3 +138,48 @@ def critical_exponents(results: JammingResult | Iterable[JammingResult], *,
                "theta_l": pooled_forces(results, "localized", rule)}
     return {name: exponent_from_sample(name, sample, upper=uppers[name], **fit_options)
             for name, sample in samples.items()}
+
+
+def window_scan(name: str, sample: PooledSample, *, upper: float | None = None,
+                largest: float | None = None, min_count: int = 10,
+                method: str = "mle") -> list[dict]:
+    """The exponent fitted with the window top moved over 3 decades around `upper`.
+
+    The check of the window rule: where the power law holds, the exponent does not drift
+    as the top of the window moves (within the statistical error of the smaller windows).
+
+    Parameters
+    ----------
+    name : {"gamma", "theta_e", "theta_l"}
+    sample : PooledSample
+    upper : float, optional
+        The window top of the measurement (default `UPPER[name]`); tops
+        upper × 10^(k/4), k in `SCAN_STEPS`, are tried.
+    largest : float, optional
+        No top above this (e.g. the largest gap collected).
+    min_count, method
+        As in `fit_cumulative_power_law`.
+
+    Returns
+    -------
+    list of dict
+        {"upper", "value", "points"} for every top whose window holds enough points, in
+        increasing order of the top (no bootstrap).
+    """
+    if name not in _FROM_SLOPE:
+        raise ValueError(f"name must be one of {tuple(_FROM_SLOPE)}, got {name!r}")
+    top = UPPER[name] if upper is None else upper
+    offset, sign = _FROM_SLOPE[name]
+    rows = []
+    for k in SCAN_STEPS:
+        candidate = top * 10.0 ** (k / 4)
+        if largest is not None and candidate > largest * (1 + 1e-12):
+            continue
+        try:
+            fit = fit_cumulative_power_law(sample, candidate, min_count=min_count,
+                                           method=method, n_bootstrap=0)
+        except ValueError:
+            continue
+        rows.append({"upper": float(candidate), "value": offset + sign * fit.slope,
+                     "points": fit.n_points})
+    return rows

@@ -1,13 +1,18 @@
 """Bucklers, and the split of contact forces into localised and extended ones.
 
-A buckler is a stable particle with exactly d + 1 contacts. Its d + 1 contact normals n_k
-span R^d with one linear relation, so force balance Σ_k f_k n_k = 0 fixes the forces up to a
-common factor: by Cramer's rule f_k ∝ |det(n_j, j ≠ k)|. The weakest force of a buckler is
-therefore the contact opposite the d normals that are closest to lying in one hyperplane
-through the centre: the buckler can move out of that hyperplane against that single weak
-contact (the localised buckling excitation of Lerner, Düring & Wyart 2013). Following
-Charbonneau, Corwin, Parisi & Zamponi (2015), such forces are "localised" and all others are
-"extended"; see `localized_contacts` for the two rules offered.
+A buckler is a stable particle with exactly d + 1 contacts. Charbonneau, Corwin, Parisi &
+Zamponi (PRL 114, 125504, 2015) separate the contribution of these *particles*, which carry the
+localised buckling excitations of Lerner, Düring & Wyart (Soft Matter 9, 8252, 2013), from the
+others: the localised forces are the forces acting on bucklers (every contact with a buckler at
+either end, rule "bucklers", the default), the extended forces are all the others.
+
+A buckler's d + 1 unit normals n_k span R^d with one linear relation, so force balance
+Σ_k f_k n_k = 0 fixes its forces up to a common factor: by Cramer's rule
+f_k ∝ |det(n_j, j ≠ k)|. Its weakest force is the contact opposite the d normals closest to
+one hyperplane through the centre, the one loaded by the buckling motion; only the weak end of
+the localised distribution matters for θ_ℓ, and it is made of these forces. Rule "weakest"
+keeps only that contact of each buckler as localised (the others go to the extended set), for
+comparison.
 """
 
 from __future__ import annotations
@@ -20,11 +25,16 @@ from ..result import JammingResult
 from ._inputs import as_results
 from .sample import PooledSample
 
-__all__ = ["LOCALIZATION_RULES", "FORCE_KINDS", "bucklers", "localized_contacts",
+__all__ = ["DEFAULT_RULE", "LOCALIZATION_RULES", "FORCE_KINDS", "bucklers", "canonical_rule",
+           "localized_contacts",
            "normalized_forces", "pooled_forces"]
 
 #: Rules accepted by `localized_contacts`.
-LOCALIZATION_RULES = ("weakest", "all")
+LOCALIZATION_RULES = ("bucklers", "weakest")
+#: Default localisation rule.
+DEFAULT_RULE = "bucklers"
+#: Former name of rule "bucklers", still accepted.
+_RULE_ALIASES = {"all": "bucklers"}
 #: Force sets accepted by `pooled_forces`.
 FORCE_KINDS = ("all", "localized", "extended")
 
@@ -47,28 +57,36 @@ def normalized_forces(result: JammingResult) -> np.ndarray:
     return forces / forces.mean()
 
 
-def localized_contacts(result: JammingResult, rule: str = "weakest") -> np.ndarray:
+def canonical_rule(rule: str) -> str:
+    """`rule` checked against `LOCALIZATION_RULES` ("all" is the former name of "bucklers")."""
+    rule = _RULE_ALIASES.get(rule, rule)
+    if rule not in LOCALIZATION_RULES:
+        raise ValueError(f"rule must be one of {LOCALIZATION_RULES}, got {rule!r}")
+    return rule
+
+
+def localized_contacts(result: JammingResult, rule: str = DEFAULT_RULE) -> np.ndarray:
     """Which contacts carry a localised force.
 
     Parameters
     ----------
     result : JammingResult
-    rule : {"weakest", "all"}
-        "weakest" (default): the weakest contact of every buckler, the one that the buckling
-        excitation loads (see the module notes). A contact can be the weakest of both its
-        particles; it is counted once. "all": every contact with a buckler at either end.
+    rule : {"bucklers", "weakest"}
+        "bucklers" (default): every contact with a buckler at either end, the forces acting on
+        bucklers (Charbonneau et al. 2015). "weakest": only the weakest contact of every
+        buckler, the one that the buckling excitation loads (see the module notes); a contact
+        can be the weakest of both its particles, it is counted once.
 
     Returns
     -------
     ndarray, shape (M,), bool
         True for localised contacts, aligned with `result.contacts`.
     """
-    if rule not in LOCALIZATION_RULES:
-        raise ValueError(f"rule must be one of {LOCALIZATION_RULES}, got {rule!r}")
+    rule = canonical_rule(rule)
     is_buckler = bucklers(result)
     contacts = result.contacts
     m = contacts.shape[0]
-    if rule == "all":
+    if rule == "bucklers":
         return is_buckler[contacts[:, 0]] | is_buckler[contacts[:, 1]]
     particle = contacts.T.ravel()                 # both ends of every contact
     edge = np.tile(np.arange(m), 2)
@@ -82,7 +100,7 @@ def localized_contacts(result: JammingResult, rule: str = "weakest") -> np.ndarr
 
 
 def pooled_forces(results: JammingResult | Iterable[JammingResult], kind: str = "all",
-                  rule: str = "weakest") -> PooledSample:
+                  rule: str = DEFAULT_RULE) -> PooledSample:
     """Forces normalised by their mean in each packing, pooled.
 
     Parameters
@@ -91,7 +109,7 @@ def pooled_forces(results: JammingResult | Iterable[JammingResult], kind: str = 
     kind : {"all", "localized", "extended"}
         Which forces: every contact, the localised ones (`localized_contacts` with `rule`), or
         the others.
-    rule : {"weakest", "all"}
+    rule : {"bucklers", "weakest"}
         See `localized_contacts`.
 
     Returns

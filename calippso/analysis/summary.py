@@ -9,8 +9,8 @@ import numpy as np
 
 from ..result import JammingResult
 from ._inputs import as_results
-from .exponents import UPPER, Exponent, exponent_from_sample
-from .forces import bucklers, pooled_forces
+from .exponents import UPPER, Exponent, exponent_from_sample, window_scan
+from .forces import DEFAULT_RULE, bucklers, canonical_rule, pooled_forces
 from .gaps import DEFAULT_MAX_GAP, pooled_gaps
 from .sample import PooledSample
 from .structure import ContactStatistics, contact_statistics
@@ -39,6 +39,9 @@ class Analysis:
         Largest gap collected.
     rule : str
         Localisation rule.
+    window_scans : dict of str to list of dict
+        Per exponent, the value fitted with the window top moved over 3 decades
+        (`calippso.analysis.exponents.window_scan`): the check of the window rule.
     """
 
     contacts: ContactStatistics
@@ -50,6 +53,7 @@ class Analysis:
     max_gap: float
     rule: str
     wall_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_scans: dict[str, list[dict]] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """The summary as plain numbers (JSON-ready)."""
@@ -79,11 +83,12 @@ class Analysis:
                                 if self.wall_times.size else float("nan")},
             "exponents": {name: e.to_dict() for name, e in self.exponents.items()},
             "exponent_errors": dict(self.exponent_errors),
+            "window_scan": {name: list(rows) for name, rows in self.window_scans.items()},
         }
 
 
 def analyze(results: JammingResult | Iterable[JammingResult], *,
-            max_gap: float = DEFAULT_MAX_GAP, rule: str = "weakest",
+            max_gap: float = DEFAULT_MAX_GAP, rule: str = DEFAULT_RULE,
             upper: dict[str, float] | None = None, **fit_options) -> Analysis:
     """Analyse one packing, or pool an ensemble of packings of one dimension.
 
@@ -92,13 +97,14 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
     results : JammingResult or iterable of JammingResult
     max_gap : float
         Largest gap h collected.
-    rule : {"weakest", "all"}
+    rule : {"bucklers", "weakest"}
         Localisation rule (`calippso.analysis.forces.localized_contacts`).
     upper : dict, optional
         Upper ends of the fit windows by exponent name (defaults:
         `calippso.analysis.exponents.UPPER`).
     **fit_options
-        Passed to `fit_cumulative_power_law` (min_count, n_bootstrap, confidence, seed).
+        Passed to `fit_cumulative_power_law` (min_count, method, n_bootstrap, confidence,
+        seed).
 
     Returns
     -------
@@ -107,12 +113,17 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
         the reason in `exponent_errors`.
     """
     items = as_results(results)
+    rule = canonical_rule(rule)
     uppers = {**UPPER, **(upper or {})}
     gaps = pooled_gaps(items, max_gap)
     forces = {kind: pooled_forces(items, kind, rule) for kind in ("all", "extended", "localized")}
     samples = {"gamma": gaps, "theta_e": forces["extended"], "theta_l": forces["localized"]}
-    exponents, errors = {}, {}
+    exponents, errors, scans = {}, {}, {}
+    scan_options = {k: v for k, v in fit_options.items() if k in ("min_count", "method")}
     for name, sample in samples.items():
+        scans[name] = window_scan(name, sample, upper=uppers[name],
+                                  largest=max_gap if name == "gamma" else None,
+                                  **scan_options)
         try:
             exponents[name] = exponent_from_sample(name, sample, upper=uppers[name],
                                                    **fit_options)
@@ -123,4 +134,5 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
         exponent_errors=errors,
         n_bucklers=int(sum(np.count_nonzero(bucklers(r)) for r in items)),
         max_gap=float(max_gap), rule=rule,
-        wall_times=np.array([r.wall_time for r in items], dtype=np.float64))
+        wall_times=np.array([r.wall_time for r in items], dtype=np.float64),
+        window_scans=scans)

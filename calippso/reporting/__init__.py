@@ -22,7 +22,7 @@ __all__ = ["report", "plot_forces", "plot_gaps", "plot_contact_numbers", "plot_h
 
 
 def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.PathLike, *,
-           title: str | None = None, max_gap: float = DEFAULT_MAX_GAP, rule: str = "weakest",
+           title: str | None = None, max_gap: float = DEFAULT_MAX_GAP, rule: str = "bucklers",
            n_bootstrap: int = 1000, seed: int = 0, max_history_figures: int | None = None,
            ) -> Path:
     """Analyse one jammed packing or pool an ensemble, and write the report into `out_dir`.
@@ -41,7 +41,7 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
         Page title (default: "Jammed packings, d = …").
     max_gap : float
         Largest gap collected (`calippso.analysis.gaps`).
-    rule : {"weakest", "all"}
+    rule : {"bucklers", "weakest"}
         Localisation rule (`calippso.analysis.forces.localized_contacts`).
     n_bootstrap : int
         Bootstrap resamples per exponent.

@@ -64,6 +64,16 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
                      f"| {e['reference']:g} | [{_fmt(e['window'][0], 3)}, "
                      f"{_fmt(e['window'][1], 3)}] | {e['points_in_window']} "
                      f"| {e['bootstrap_over']} |")
+    scans = summary.get("window_scan", {})
+    if any(scans.values()):
+        lines += ["", "Window check: each exponent refitted with the top of its window moved "
+                  "(top: value, points in the window); where the power law holds the value does "
+                  "not drift.", ""]
+        for name, (symbol, _) in _NAMES.items():
+            rows = scans.get(name) or []
+            if rows:
+                lines.append(f"* {symbol}: " + ", ".join(
+                    f"{row['upper']:.2g}: {row['value']:.3f} ({row['points']})" for row in rows))
     lines += ["", "## Distributions", "",
               f"![forces]({figures['forces'].name})", "",
               f"![gaps]({figures['gaps'].name})", "",
