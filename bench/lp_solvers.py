@@ -51,9 +51,9 @@ def capture_lp(n: int, index: int) -> LinearProgram:
     def recording(name):
         solve = real(name)
 
-        def wrapper(lp, settings):
+        def wrapper(lp, settings, warm_start=None):
             captured.append(lp)
-            return solve(lp, settings)
+            return solve(lp, settings, warm_start=warm_start)
         return wrapper
 
     calippso.ilp.get_solver = recording

@@ -1,9 +1,10 @@
 """Checkpoints of `jam`: the loop's state after every LP, saved atomically, and resumption.
 
 With ``jam(..., checkpoint=path)`` the state of the CALiPPSO loop (positions, diameters, step
-bound, pairs forced into the LP, networks the Newton stage rejected, history and notes) is
-written to `path` after every LP, through a temporary file renamed into place, so a run
-killed at any moment leaves the previous state or the new one, never a torn file. A new call
+bound, pairs forced into the LP, networks the Newton stage rejected, history, notes and the
+last LP's basis) is written to `path` after every LP, through a temporary file renamed into
+place, so a run killed at any moment leaves the previous state or the new one, never a torn
+file. A new call
 with the same input, settings and path resumes from it; the LPs that follow are the ones the
 uninterrupted run would have solved, so the result is the same bit for bit.
 
@@ -26,11 +27,12 @@ from .packing import Packing
 from .atomic import save_npz_atomic
 from .result import HISTORY_COLUMNS, history_from_records
 from .settings import JamSettings
+from .solvers.base import Basis
 
 __all__ = ["digest", "signature", "save_state", "load_state"]
 
 #: Version of the file layout; a file with another version is refused.
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 #: Settings that do not change the sequence of LPs, left out of the signature.
 _IGNORED_SETTINGS = ("verbose", "max_iters")
 
@@ -65,7 +67,8 @@ def save_state(path: Path, key: str, state: dict) -> None:
     state : dict
         "positions" (N, d), "diameters" (N,), "step" (float), "forced" (K, 2) int,
         "failed_networks" (list of str), "records" (list of history dicts), "notes" (list of
-        str), all in the loop's internal units.
+        str), "basis" (`calippso.solvers.Basis` or None: the warm start of the next LP), all
+        in the loop's internal units.
     """
     arrays = {
         "format_version": np.array(FORMAT_VERSION),
@@ -77,6 +80,10 @@ def save_state(path: Path, key: str, state: dict) -> None:
         "failed_networks": np.array(sorted(state["failed_networks"]), dtype=str),
         "notes": np.array(state["notes"], dtype=str),
     }
+    basis = state.get("basis")
+    if basis is not None:
+        arrays.update(basis_row_keys=basis.row_keys, basis_row_status=basis.row_status,
+                      basis_col_status=basis.col_status)
     history = history_from_records(state["records"])
     for name in HISTORY_COLUMNS:
         arrays[f"history_{name}"] = history[name]
@@ -117,4 +124,6 @@ def load_state(path: Path, key: str) -> dict | None:
         "failed_networks": set(data["failed_networks"].tolist()),
         "records": records,
         "notes": data["notes"].tolist(),
+        "basis": (Basis(data["basis_row_keys"], data["basis_row_status"],
+                        data["basis_col_status"]) if "basis_row_keys" in data else None),
     }

@@ -32,7 +32,7 @@ from .newton import refine_isostatic
 from .packing import Packing, wrap
 from .result import JammingResult, history_from_records
 from .settings import JamSettings
-from .solvers import LPSolution, get_solver
+from .solvers import Basis, LPSolution, get_solver
 
 __all__ = ["jam", "initial_step_bound", "next_step_bound"]
 
@@ -42,6 +42,8 @@ CLEANUP_STEP = 1e-3
 #: A pair outside the contact network may overlap by at most this relative gap at a Newton
 #: solution (round-off); more means the network is not the jammed one.
 NEWTON_OVERLAP_TOLERANCE = 1e-12
+#: Smallest first bound on displacements chosen by `initial_step_bound` (mean diameters).
+INITIAL_STEP_FLOOR = 1e-3
 #: The loop stops as stalled (not converged) after this many LPs without progress.
 STALL_LPS = 25
 #: Pairs closer than this relative gap count as touching when the LP duals are degenerate
@@ -113,7 +115,11 @@ def _as_packing(packing, diameters, box) -> Packing:
 
 
 def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
-    """First bound on displacements: the median nearest-neighbour surface gap, clipped.
+    """First bound on displacements: the median nearest-neighbour surface gap, at least
+    `INITIAL_STEP_FLOOR`, clipped to [min_step, max_step].
+
+    From a compressed state (LS at p ≥ 1e5, gaps ~1e-6) the particles still travel ~1e-3–1e-2
+    to the jamming point; starting at the gap would spend several LPs growing the bound.
 
     Parameters
     ----------
@@ -127,7 +133,7 @@ def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
     else:
         distances, neighbours = search.nearest_neighbours()
         sigma = 0.5 * (search.diameters + search.diameters[neighbours])
-        step = float(np.median(distances - sigma))
+        step = max(float(np.median(distances - sigma)), INITIAL_STEP_FLOOR)
     return float(np.clip(step, settings.min_step, settings.max_step))
 
 
@@ -241,6 +247,7 @@ class _Jammer:
         self.retried_lps = 0
         self.stalled = False
         self.forced = np.zeros((0, 2), dtype=np.int64)
+        self.basis: Basis | None = None   # optimal basis of the last accepted LP
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
         self._check_input_overlaps()
         self.step = initial_step_bound(self.search, settings)
@@ -257,7 +264,7 @@ class _Jammer:
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
         self.step, self.forced = state["step"], state["forced"]
         self.failed_networks, self.records = state["failed_networks"], state["records"]
-        self.notes = state["notes"]
+        self.notes, self.basis = state["notes"], state["basis"]
         if self.records:
             self.start -= self.records[-1]["wall_time"]
 
@@ -266,7 +273,7 @@ class _Jammer:
             save_state(self.checkpoint, self.checkpoint_key, {
                 "positions": self.positions, "diameters": self.diameters, "step": self.step,
                 "forced": self.forced, "failed_networks": self.failed_networks,
-                "records": self.records, "notes": self.notes})
+                "records": self.records, "notes": self.notes, "basis": self.basis})
 
     # ----------------------------------------------------------------- helpers
     @property
@@ -318,12 +325,14 @@ class _Jammer:
         attempts += [(name, bound) for name in self.settings.fallback_solvers
                      if name != self.solver_name for bound in (step, step / 4)]
         failures = []
+        warm_start = self.basis if self.settings.warm_start else None
         for name, bound in attempts:
             lp = build_lp(self._pairs(search, bound, stable, forced), self.n, self.d, bound, fixed)
             try:
-                solution = get_solver(name)(lp, self.settings)
+                solution = get_solver(name)(lp, self.settings, warm_start=warm_start)
             except (SolverError, ValueError, RuntimeError, MemoryError) as error:
                 failures.append(f"{name} (bound {bound:.1e}): {type(error).__name__}: {error}")
+                warm_start = None
                 continue
             problem = _solution_problem(lp, solution)
             if problem is None:
@@ -334,6 +343,7 @@ class _Jammer:
                     self.retried_lps += 1
                 return self._analyse(lp, solution, stable)
             failures.append(f"{name} (bound {bound:.1e}): {problem}")
+            warm_start = None   # retries start from scratch
         raise self._fail(f"every LP backend failed at LP {self.lps_solved + 1}: "
                          + "; ".join(failures))
 
@@ -447,6 +457,11 @@ class _Jammer:
                 break
             # adapt from the bound the accepted LP had (a retry may have used a smaller one)
             self.step = next_step_bound(step_result.lp.step_bound, step_result, settings)
+            # A bound that had to grow (a stable particle was held by it) means the particles
+            # still travel far: the next optimal basis is far from this one, and a cold
+            # interior-point solve is cheaper than a warm-started simplex.
+            grew = self.step > 2.0 * step_result.lp.step_bound
+            self.basis = None if grew else step_result.solution.basis
             if (settings.newton and record["isostaticity_gap"] == 0 and record["n_contacts"]
                     and step_result.max_displacement < settings.newton_start):
                 refined = self._newton(network)

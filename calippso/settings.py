@@ -60,6 +60,9 @@ class JamSettings:
     verify_newton : bool
         After a certified Newton stage, solve one more LP at the final configuration and
         continue the loop unless it meets the convergence criteria.
+    warm_start : bool
+        Start each LP from the optimal basis of the previous one (HiGHS: primal simplex from
+        that basis, interior point + crossover when it does not pay off).
     pin : bool
         Fix one particle's displacement to remove the d translational zero modes.
     verbose : bool
@@ -84,6 +87,7 @@ class JamSettings:
     newton: bool = True
     newton_start: float = 1e-4
     verify_newton: bool = False
+    warm_start: bool = True
     pin: bool = True
     verbose: bool = False
 

@@ -81,9 +81,9 @@ class Injector:
     def __call__(self, name: str):
         real = REAL(name)
 
-        def solve(lp, settings):
+        def solve(lp, settings, warm_start=None):
             self.calls.append((name, self.accepted + 1))
-            solution = real(lp, settings)
+            solution = real(lp, settings, warm_start=warm_start)
             current = self.accepted + 1
             broken = name == self.target and self.start <= current <= self.stop
             if broken and self.only_first_try:
@@ -148,8 +148,8 @@ def test_every_backend_failing_midway_keeps_the_last_valid_configuration(monkeyp
     def all_broken(name):
         real = REAL(name)
 
-        def solve(lp, settings):
-            solution = real(lp, settings)
+        def solve(lp, settings, warm_start=None):
+            solution = real(lp, settings, warm_start=warm_start)
             return GARBAGE[fault](solution) if len(seen) >= 3 else solution
         return solve
 
@@ -172,7 +172,7 @@ def test_every_backend_failing_midway_keeps_the_last_valid_configuration(monkeyp
 
 def test_error_from_the_first_lp_keeps_the_input(monkeypatch, start):
     def broken(name):
-        def solve(lp, settings):
+        def solve(lp, settings, warm_start=None):
             raise RuntimeError("injected failure")
         return solve
 

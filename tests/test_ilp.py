@@ -202,7 +202,7 @@ def test_failing_backend_falls_back(monkeypatch):
 
     def broken_highs(name):
         if name == "highs":
-            def fail(lp, settings):
+            def fail(lp, settings, warm_start=None):
                 raise RuntimeError("injected failure")
             return fail
         return real(name)
@@ -217,7 +217,7 @@ def test_failing_backend_falls_back(monkeypatch):
 
 def test_every_backend_failing_keeps_last_configuration(monkeypatch):
     def broken(name):
-        def fail(lp, settings):
+        def fail(lp, settings, warm_start=None):
             raise RuntimeError("injected failure")
         return fail
 

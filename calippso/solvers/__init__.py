@@ -1,4 +1,4 @@
-"""LP backends behind one interface: ``solve(lp, settings) -> LPSolution``.
+"""LP backends behind one interface: ``solve(lp, settings, warm_start=None) -> LPSolution``.
 
 The backends never see positions, only the `LinearProgram` data. Each is imported on first
 use, so that a user of one backend never loads the others.
@@ -9,9 +9,9 @@ from __future__ import annotations
 import importlib
 from typing import Callable
 
-from .base import LPSolution
+from .base import Basis, LPSolution
 
-__all__ = ["LPSolution", "get_solver"]
+__all__ = ["Basis", "LPSolution", "get_solver"]
 
 _BACKENDS = {"highs": "calippso.solvers.highs", "clarabel": "calippso.solvers.clarabel",
              "cvxpy": "calippso.solvers.cvxpy"}

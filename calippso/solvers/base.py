@@ -6,7 +6,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LPSolution"]
+__all__ = ["LPSolution", "Basis"]
+
+
+@dataclass(frozen=True, eq=False)
+class Basis:
+    """An optimal simplex basis, with each row named by its pair, so that the next LP of the
+    loop (other positions, partly other rows) can start from it.
+
+    Attributes
+    ----------
+    row_keys : ndarray, shape (M,), int64
+        i N + j for the pair (i, j) of every row.
+    row_status, col_status : ndarray, shapes (M,) and (N d + 1,), int8
+        The backend's status code of every row and column (basic, at lower, at upper, ...).
+    """
+
+    row_keys: np.ndarray
+    row_status: np.ndarray
+    col_status: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,6 +47,10 @@ class LPSolution:
         True for a basic (vertex) solution, whose inactive duals are exactly zero.
     solver : str
         Backend name.
+    basis : Basis or None
+        The optimal basis, for a warm start of the next LP (HiGHS only).
+    warm_started : bool
+        The solution was found from the previous LP's basis.
     """
 
     x: np.ndarray
@@ -38,6 +60,8 @@ class LPSolution:
     seconds: float
     vertex: bool
     solver: str
+    basis: Basis | None = None
+    warm_started: bool = False
 
     @property
     def gamma(self) -> float:

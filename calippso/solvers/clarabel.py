@@ -18,8 +18,9 @@ from .conic_form import conic_form
 TOLERANCE = 1e-11
 
 
-def solve(lp: LinearProgram, settings: JamSettings) -> LPSolution:
-    """Solve with Clarabel; duals of the pair rows are the contact multipliers."""
+def solve(lp: LinearProgram, settings: JamSettings, warm_start=None) -> LPSolution:
+    """Solve with Clarabel; duals of the pair rows are the contact multipliers. `warm_start` is
+    accepted for a uniform interface and ignored (interior point has no basis to reuse)."""
     start = time.perf_counter()
     form = conic_form(lp)
     options = clarabel.DefaultSettings()

@@ -28,8 +28,9 @@ def build_problem(lp: LinearProgram) -> tuple[cp.Problem, cp.Variable, cp.Constr
     return cp.Problem(cp.Maximize(x[-1]), constraints), x, pairs
 
 
-def solve(lp: LinearProgram, settings: JamSettings) -> LPSolution:
-    """Build the cvxpy problem and solve it with Clarabel at tight tolerances."""
+def solve(lp: LinearProgram, settings: JamSettings, warm_start=None) -> LPSolution:
+    """Build the cvxpy problem and solve it with Clarabel at tight tolerances. `warm_start` is
+    accepted for a uniform interface and ignored (interior point has no basis to reuse)."""
     start = time.perf_counter()
     problem, x, pairs = build_problem(lp)
     try:
