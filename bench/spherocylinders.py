@@ -20,6 +20,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from generators.spherocylinders import force_biased, min_distance_ratio  # noqa: E402
+from generators.spherocylinders.fb import rigid_body_eps_rot  # noqa: E402
 
 
 def run_one(n: int, gamma: float, seed: int, **options) -> dict:
@@ -28,8 +29,12 @@ def run_one(n: int, gamma: float, seed: int, **options) -> dict:
     result = force_biased(n, gamma, seed=seed, **options)
     wall = time.perf_counter() - started
     packing = result.packing
-    return {"n": n, "gamma": gamma, "seed": seed, **options, "phi": packing.phi,
+    meetings = result.history["phi"][result.history["rate"] == 0.0]
+    return {"n": n, "gamma": gamma, "seed": seed, **options,
+            "eps_rot_used": options.get("eps_rot", float(rigid_body_eps_rot(gamma))),
+            "phi": packing.phi,
             "S": packing.nematic_order(), "steps": result.collisions, "wall_time": wall,
+            "phi_first_meeting": float(meetings[0]) if len(meetings) else None,
             "min_distance_ratio": min_distance_ratio(packing), "status": result.status}
 
 
@@ -43,6 +48,7 @@ def bench(n: int) -> None:
 
 def sweep(n: int, gammas: list[float], seeds: list[int], out: Path, **options) -> None:
     rows = json.loads(out.read_text()) if out.exists() else []
+    options = {key: value for key, value in options.items() if value is not None}
     for gamma in gammas:
         for seed in seeds:
             row = run_one(n, gamma, seed, **options)
@@ -53,6 +59,12 @@ def sweep(n: int, gammas: list[float], seeds: list[int], out: Path, **options) -
                   f"min δ/σ = {row['min_distance_ratio']:.12f}", flush=True)
 
 
+def _rotation(row: dict):
+    """The group of a row: Bargiel's fixed ε_r, or "rigid" (the default, rigid-body ε_r)."""
+    value = row.get("eps_rot", "rigid")
+    return "rigid" if value is None else value
+
+
 def plot(files: list[Path], image: Path) -> None:
     import matplotlib
 
@@ -60,31 +72,38 @@ def plot(files: list[Path], image: Path) -> None:
     import matplotlib.pyplot as plt
 
     rows = [row for file in files for row in json.loads(file.read_text())]
-    figure, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
-    groups = sorted({(row.get("eps_rot", 0.02), row.get("contraction_rate", 1e-4))
-                     for row in rows})
-    for eps_rot, rate in groups:
-        chosen = [row for row in rows if (row.get("eps_rot", 0.02),
-                                          row.get("contraction_rate", 1e-4)) == (eps_rot, rate)]
+    figure, (left, middle, right) = plt.subplots(1, 3, figsize=(15, 4.2))
+    groups = sorted({(str(_rotation(row)), row.get("contraction_rate", 1e-4)) for row in rows})
+    for rotation, rate in groups:
+        chosen = [row for row in rows
+                  if (str(_rotation(row)), row.get("contraction_rate", 1e-4)) == (rotation, rate)]
         gammas = sorted({row["gamma"] for row in chosen})
         phi = [[row["phi"] for row in chosen if row["gamma"] == g] for g in gammas]
         order = [[row["S"] for row in chosen if row["gamma"] == g] for g in gammas]
-        label = f"ε_r = {eps_rot:g}, τ = {rate:g}"
-        left.errorbar(gammas, [np.mean(p) for p in phi], [np.std(p) for p in phi], marker="o",
-                      capsize=3, label=label)
-        right.plot(gammas, [np.mean(s) for s in order], marker="o", label=label)
-    reference = np.linspace(4, 25, 50)
+        what = "rigid-body ε_r (default)" if rotation == "rigid" else f"ε_r = {float(rotation):g}"
+        label = f"{what}, τ = {rate:g}"
+        marker = "o" if rotation == "rigid" else "s"
+        left.errorbar(gammas, [np.mean(p) for p in phi], [np.std(p) for p in phi],
+                      marker=marker, capsize=3, label=label)
+        middle.errorbar(gammas, [np.mean(p) * g for p, g in zip(phi, gammas)],
+                        [np.std(p) * g for p, g in zip(phi, gammas)], marker=marker, capsize=3,
+                        label=label)
+        right.plot(gammas, [np.mean(s) for s in order], marker=marker, label=label)
+    reference = np.linspace(4, 90, 100)
     left.plot(reference, 4.5 / reference, "k--", lw=1, label="φ = 4.5/γ (Bargiel)")
     left.plot([0.4], [0.705], "k*", ms=10, label="Bargiel max 0.705")
-    left.set(xlabel="aspect ratio γ = l/d", ylabel="φ", ylim=(0.15, 0.75))
+    left.set(xlabel="aspect ratio γ = l/d", ylabel="φ", yscale="log", ylim=(0.04, 0.8))
+    middle.axhspan(4.5 * 0.85, 4.5 * 1.15, color="0.85", label="Bargiel 4.5 ± 15 %")
+    middle.axhline(5.4, color="k", ls=":", lw=1, label="Williams–Philipse 5.4")
+    middle.set(xlabel="aspect ratio γ = l/d", ylabel="φ γ", ylim=(0, 6))
     right.set(xlabel="aspect ratio γ = l/d", ylabel="nematic order S")
     right.axhline(0.05, color="k", ls=":", lw=1)
-    for axis in (left, right):
-        axis.legend(fontsize=8)
+    for axis in (left, middle, right):
+        axis.legend(fontsize=7)
         axis.set_xscale("symlog", linthresh=1.0)
         axis.set_xlim(left=-0.1)
     figure.tight_layout()
-    figure.savefig(image, dpi=120)
+    figure.savefig(image, dpi=110)
 
 
 def main() -> None:
@@ -96,7 +115,8 @@ def main() -> None:
     run.add_argument("--n", type=int, default=2000)
     run.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.4, 1.0, 2.0, 5.0, 10.0])
     run.add_argument("--seeds", type=int, nargs="+", default=[0])
-    run.add_argument("--eps-rot", type=float, default=0.02)
+    run.add_argument("--eps-rot", type=float, default=None,
+                     help="Bargiel's ε_r; default: the rigid-body value of each aspect ratio")
     run.add_argument("--contraction-rate", type=float, default=1e-4)
     run.add_argument("--out", type=Path, required=True)
     draw = sub.add_parser("plot")

@@ -9,7 +9,7 @@ import pytest
 
 from generators.result import GenerationResult
 from generators.spherocylinders import (SpherocylinderPacking, force_biased, min_distance_ratio,
-                                        spherocylinder_volume)
+                                        rigid_body_eps_rot, spherocylinder_volume)
 from generators.spherocylinders.cells import pair_list
 from generators.spherocylinders.geometry import shaft_distance
 
@@ -143,3 +143,35 @@ def test_pair_list_matches_brute_force():
                 if distance < 0.5 * (diameters[i] + diameters[j]) + skin:
                     expected.add((i, j))
         assert listed == expected
+
+
+def _gyration_radius2_by_quadrature(gamma, points=200_001):
+    """I/m about a diameter of a solid spherocylinder (d = 1, l = γ), by slicing along the axis."""
+    half = gamma / 2 + 0.5
+    z = np.linspace(-half, half, points)
+    beyond = np.clip(np.abs(z) - gamma / 2, 0.0, 0.5)
+    rho2 = 0.25 - beyond**2  # squared radius of the cross-section at z
+    inertia = np.trapezoid(math.pi * rho2**2 / 4 + z**2 * math.pi * rho2, z)
+    return inertia / np.trapezoid(math.pi * rho2, z)
+
+
+@pytest.mark.parametrize("gamma", [0.0, 0.4, 2.0, 10.0, 80.0])
+def test_rigid_body_rotation_step(gamma):
+    from generators.spherocylinders.fb import gyration_radius2
+
+    k2 = _gyration_radius2_by_quadrature(gamma)
+    assert gyration_radius2(gamma) == pytest.approx(k2, rel=1e-6)
+    assert rigid_body_eps_rot(gamma, 0.1) == pytest.approx(0.1 * gamma / k2, rel=1e-6)
+    if gamma >= 10:  # slender rod: k² → l²/12, a tip contact turns 3× as far as it translates
+        assert rigid_body_eps_rot(gamma, 0.1) * gamma / 12 == pytest.approx(0.1, rel=0.2)
+
+
+def test_default_rotation_is_the_rigid_body_step():
+    n, seed, gamma = 200, 4, 1.0
+    default = force_biased(n, gamma, contraction_rate=1e-3, seed=seed)
+    explicit = force_biased(n, gamma, eps_rot=float(rigid_body_eps_rot(gamma)),
+                            contraction_rate=1e-3, seed=seed)
+    np.testing.assert_array_equal(default.packing.axes, explicit.packing.axes)
+    assert min_distance_ratio(default.packing) >= 1.0
+    with pytest.raises(ValueError, match="eps_rot must be None or"):
+        force_biased(n, gamma, eps_rot="fast")

@@ -1,4 +1,7 @@
-"""Validation against Bargiel (2008) at N = 2000 (slow: run with ``pytest -m slow``)."""
+"""Validation against Bargiel (2008) at N = 2000 (slow: run with ``pytest -m slow``).
+
+Figures measured with these settings are in docs/spherocylinders.md (validation table).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +12,8 @@ from generators.spherocylinders import force_biased, min_distance_ratio
 pytestmark = pytest.mark.slow
 
 N = 2000
+#: Bargiel (2008): φ γ ≈ 4.5 for γ ≥ 10, to ±15 %.
+PHI_GAMMA, BAND = 4.5, 0.15
 
 
 @pytest.fixture(scope="module")
@@ -17,16 +22,23 @@ def short_rods():
             for gamma in (0.0, 0.4, 1.0)}
 
 
-def test_no_overlap_exact_distance(short_rods):
-    for packing in short_rods.values():
+@pytest.fixture(scope="module")
+def rods_gamma_10():
+    """Default settings (rigid-body rotations, τ = 1e-4): about 2 to 5 minutes."""
+    return force_biased(N, 10.0, contraction_rate=1e-4, seed=0).packing
+
+
+def test_no_overlap_exact_distance(short_rods, rods_gamma_10):
+    for packing in [*short_rods.values(), rods_gamma_10]:
         assert min_distance_ratio(packing) >= 1.0
 
 
 def test_density_maximum_near_short_rods(short_rods):
     phi = {gamma: packing.phi for gamma, packing in short_rods.items()}
     assert 0.62 < phi[0.0] < 0.66  # spheres: random close packing, ≈ 0.64
-    assert phi[0.4] > phi[0.0] + 0.02  # the density rises with elongation …
+    assert phi[0.4] > phi[0.0] + 0.04  # the density rises with elongation …
     assert phi[0.4] > phi[1.0]  # … to a maximum near γ ≈ 0.4, then falls
+    assert phi[0.4] == pytest.approx(0.705, abs=0.03)  # Bargiel 0.705; MRJ ≈ 0.72
 
 
 def test_isotropic_without_rotations():
@@ -35,11 +47,14 @@ def test_isotropic_without_rotations():
     assert min_distance_ratio(packing) >= 1.0
 
 
-@pytest.mark.xfail(reason="measured φ γ ≈ 3.5 (τ = 1e-4) to 3.8 (τ = 3e-5, N = 1000): below "
-                          "Bargiel's 4.5 ± 15 % at the contraction rates affordable here",
-                   strict=False)
-def test_long_rods_follow_phi_gamma_constant():
-    gamma = 10.0
-    packing = force_biased(N, gamma, contraction_rate=3e-5, seed=0).packing
-    assert min_distance_ratio(packing) >= 1.0
-    assert packing.phi * gamma == pytest.approx(4.5, rel=0.15)
+def test_long_rods_measured_density(rods_gamma_10):
+    """What the default settings give at γ = 10 (measured: φ γ = 3.4–3.5), and isotropy."""
+    assert 3.2 < rods_gamma_10.phi * 10.0 < 3.9
+    assert rods_gamma_10.nematic_order() < 0.1
+
+
+@pytest.mark.xfail(reason="measured φ γ = 3.4–3.5 at γ = 10 (τ = 1e-4, 2 seeds) and 3.7 at "
+                          "τ = 3e-5 (N = 1000): below Bargiel's 4.5 ± 15 % (3.83–5.18); "
+                          "see docs/spherocylinders.md", strict=False)
+def test_long_rods_follow_phi_gamma_constant(rods_gamma_10):
+    assert rods_gamma_10.phi * 10.0 == pytest.approx(PHI_GAMMA, rel=BAND)

@@ -12,8 +12,16 @@ p_ij = d_i d_j (1 − δ_ij² / σ_ij²): r_i += ε Σ_j p_ij n_ji / d_i. It als
 u_i ← normalise(u_i + ε_r Σ_j p_ij^r (λ_i / d_i) (d_i / l_i) t_ij), with
 p_ij^r = 1 − δ_ij² / σ_ij², λ_i the position of the contact point on shaft i (|λ_i| ≤ l_i/2,
 measured in diameters d_i as in Bargiel's reduced units) and t_ij the unit part of the push
-perpendicular to u_i. The tip of a rod thus turns by about ε_r p^r l/4 per contact at its end:
-rotation matters more for long rods. ε_r = 0 keeps the random orientations fixed (isotropic).
+perpendicular to u_i. ε_r = 0 keeps the random orientations fixed (isotropic).
+
+By default ε_r is not one number for all aspect ratios but the rigid-body value
+ε_r = ε γ / (k/d)² (`rigid_body_eps_rot`, k the radius of gyration of a solid spherocylinder
+about a diameter): the turn is then what the same mobility ε / d_i that moves the centre gives
+a rigid rod under the torques λ_ij u_i × F_ij, so that translations and rotations relax
+overlaps at matched rates for every γ (a contact at the tip of a slender rod moves 3 times as
+far by the turn as by the translation). A fixed ε_r (the former default 0.02) makes rotations
+γ-dependently too slow: 12× slower than the rigid-body value at γ = 0.4, 15× at γ = 2, 5× at
+γ = 10 (docs/spherocylinders.md).
 
 The nominal scale then shrinks by the relative amount 0.5^j τ, j = ceil(−log10(φ_out − φ_in))
 (τ the contraction rate). When no overlap is left at s_out, the inner and nominal scales meet:
@@ -35,7 +43,7 @@ from .cells import pair_list
 from .geometry import min_distance_ratio, minimum_image_component, segment_distance2
 from .packing import SpherocylinderPacking
 
-__all__ = ["force_biased", "estimated_density"]
+__all__ = ["force_biased", "estimated_density", "rigid_body_eps_rot"]
 
 #: Verlet skin, in units of the largest nominal diameter.
 SKIN = 0.3
@@ -51,8 +59,41 @@ def estimated_density(aspect_ratio: float) -> float:
     return 0.70 if aspect_ratio <= 4.5 / 0.70 else 4.5 / aspect_ratio
 
 
+def gyration_radius2(aspect_ratio):
+    """k² / d²: squared radius of gyration of a solid spherocylinder about a diameter through its
+    centre (uniform density), for diameter d = 1 and cylinder length l = γ.
+
+    Cylinder (volume π l/4): l²/12 + 1/16; each hemisphere (volume π/12), about the centre:
+    2/5 · 1/4 + l²/4 + 3 l/16 (parallel axes; its centre of mass is 3/16 from the flat face).
+    """
+    gamma = np.asarray(aspect_ratio, dtype=np.float64)
+    cylinder = math.pi * gamma / 4.0
+    cap = math.pi / 12.0
+    inertia = cylinder * (gamma**2 / 12.0 + 1.0 / 16.0) + 2.0 * cap * (0.1 + gamma**2 / 4.0
+                                                                        + 3.0 * gamma / 16.0)
+    return inertia / (cylinder + 2.0 * cap)
+
+
+def rigid_body_eps_rot(aspect_ratio, eps: float = 0.1):
+    """ε_r that makes Bargiel's rotation the rigid-body response to the translation's forces.
+
+    A translation step moves the centre by ε Σ_j F_ij / d_i with F_ij = p_ij n_ij (a mobility
+    ε / d_i, the same for every particle of the same volume). The same mobility applied to the
+    torques λ_ij u_i × F_ij of a rigid body with uniform density turns the axis by
+    ε Σ_j p_ij λ_ij n_⊥ / (d_i k_i²), k_i the radius of gyration about a diameter. Bargiel's
+    rotation u_i += ε_r Σ_j p^r_ij (λ_ij / l_i) t_ij (p_ij = d_i d_j p^r_ij) equals this for
+    ε_r = ε d_j l_i / k_i², i.e. ε_r = ε γ_i / (k_i/d_i)² when d_j = d_i (used for every pair, also
+    in mixtures, where it is the rigid-body value for contacts within a species). For ε = 0.1 it
+    is 0.25 at γ = 0.4, 0.33 at γ = 1, 0.30 at γ = 2, 0.105 at γ = 10, 0.056 at γ = 20 and
+    0.015 at γ = 80; a contact at the tip of a long rod then moves 3 times as far by the turn as
+    by the translation (12 λ²/l² at λ = l/2, as for a slender rigid rod). Spheres (γ = 0): 0.
+    """
+    gamma = np.asarray(aspect_ratio, dtype=np.float64)
+    return eps * gamma / gyration_radius2(gamma)
+
+
 @numba.njit(cache=True)
-def _evaluate(positions, axes, d0, h0, box, scale, pairs, eps, eps_rot, push, turn, overlaps):
+def _evaluate(positions, axes, d0, h0, box, scale, pairs, rotate, push, turn, overlaps):
     """Pushes and turns of all pairs overlapping at `scale`, and a lower bound of s_in.
 
     Fills push, turn (N, 3) and the indices of overlapping pairs in `overlaps`; returns
@@ -107,7 +148,7 @@ def _evaluate(positions, axes, d0, h0, box, scale, pairs, eps, eps_rot, push, tu
         push[j, 0] += p * nx / dj
         push[j, 1] += p * ny / dj
         push[j, 2] += p * nz / dj
-        if eps_rot > 0.0:
+        if rotate:
             # i is pushed along -n at lam, j along +n at mu; turn by the perpendicular part.
             for particle, h, at, sign, ux, uy, uz, dp in ((i, hi, lam, -1.0, uix, uiy, uiz, di),
                                                           (j, hj, mu, 1.0, ujx, ujy, ujz, dj)):
@@ -129,7 +170,10 @@ def _evaluate(positions, axes, d0, h0, box, scale, pairs, eps, eps_rot, push, tu
 
 @numba.njit(cache=True)
 def _move(positions, axes, box, push, turn, eps, eps_rot, reach, moved):
-    """Apply the moves, wrap, and add to `moved` a bound on how far any shaft point went."""
+    """Apply the moves, wrap, and add to `moved` a bound on how far any shaft point went.
+
+    `eps_rot` holds the rotation step ε_r of every particle (0: the axis stays fixed).
+    """
     n = positions.shape[0]
     for i in range(n):
         dx = eps * push[i, 0]
@@ -142,10 +186,10 @@ def _move(positions, axes, box, push, turn, eps, eps_rot, reach, moved):
             x = positions[i, a] % box[a]
             positions[i, a] = 0.0 if x >= box[a] else x
         step = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if eps_rot > 0.0:
-            ux = axes[i, 0] + eps_rot * turn[i, 0]
-            uy = axes[i, 1] + eps_rot * turn[i, 1]
-            uz = axes[i, 2] + eps_rot * turn[i, 2]
+        if eps_rot[i] > 0.0:
+            ux = axes[i, 0] + eps_rot[i] * turn[i, 0]
+            uy = axes[i, 1] + eps_rot[i] * turn[i, 1]
+            uz = axes[i, 2] + eps_rot[i] * turn[i, 2]
             norm = math.sqrt(ux * ux + uy * uy + uz * uz)
             ux, uy, uz = ux / norm, uy / norm, uz / norm
             ex = ux - axes[i, 0]
@@ -243,7 +287,7 @@ def _species(n: int, aspect_ratio: float, mixture) -> tuple[np.ndarray, str]:
 
 
 def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | None = None,
-                 eps: float = 0.1, eps_rot: float = 0.02, contraction_rate: float = 1e-4,
+                 eps: float = 0.1, eps_rot: float | None = None, contraction_rate: float = 1e-4,
                  initial_density: float | None = None, regrowth: float = 1e-3,
                  tolerance: float = 1e-4, max_steps: int = 200_000, seed: int = 0,
                  progress: bool = False) -> GenerationResult:
@@ -260,8 +304,11 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
         particles have the same volume.
     eps : float
         Translation step ε (> 0), dimensionless.
-    eps_rot : float
-        Rotation step ε_r (≥ 0); 0 keeps the random orientations fixed (isotropic packing).
+    eps_rot : float or None
+        Rotation step ε_r (≥ 0) of Bargiel's rotation, the same for every particle; 0 keeps
+        the random orientations fixed (isotropic packing). None (default): the rigid-body value
+        `rigid_body_eps_rot` of each particle's aspect ratio (0.25 at γ = 0.4, 0.30 at γ = 2,
+        0.105 at γ = 10, 0.056 at γ = 20, 0.015 at γ = 80, for ε = 0.1).
     contraction_rate : float
         τ in (0, 1): the nominal scale shrinks by 0.5^j τ per step. Slower is denser.
     initial_density : float, optional
@@ -300,8 +347,13 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
                              ("regrowth", regrowth, 0.0), ("tolerance", tolerance, 0.0)):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > low):
             raise ValueError(f"{name} must be a finite number > {low:g}, got {value!r}")
-    if not (isinstance(eps_rot, (int, float)) and math.isfinite(eps_rot) and eps_rot >= 0):
-        raise ValueError(f"eps_rot must be a finite number >= 0, got {eps_rot!r}")
+    if eps_rot is None:
+        steps_rot = rigid_body_eps_rot(gammas, eps)
+    elif isinstance(eps_rot, (int, float)) and math.isfinite(eps_rot) and eps_rot >= 0:
+        steps_rot = np.full(n, float(eps_rot))
+    else:
+        raise ValueError(f"eps_rot must be None or a finite number >= 0, got {eps_rot!r}")
+    rotate = bool(np.any(steps_rot > 0))
     if contraction_rate >= 1:
         raise ValueError(f"contraction_rate must be below 1, got {contraction_rate}")
     mean_gamma = float(np.mean(gammas))  # equal volumes: number and volume means coincide
@@ -351,7 +403,7 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
             overlaps = np.empty(pairs.shape[0], dtype=np.int64)
             moved[:] = 0.0
             list_builds += 1
-        count, _ = _evaluate(positions, axes, d0, h0, box, scale, pairs, eps, eps_rot, push, turn,
+        count, _ = _evaluate(positions, axes, d0, h0, box, scale, pairs, rotate, push, turn,
                              overlaps)
         if count == 0:
             inner = scale
@@ -377,7 +429,7 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
             rows.append((step, phi_in, math.nan, shrink))
             if bar is not None:
                 bar.set_postfix(phi_in=f"{phi_in:.5f}", phi_out=f"{phi_out:.5f}", refresh=False)
-        _move(positions, axes, box, push, turn, eps, eps_rot, list_scale * h0, moved)
+        _move(positions, axes, box, push, turn, eps, steps_rot, list_scale * h0, moved)
         scale = max(scale * (1.0 - shrink), inner)
         step += 1
         if bar is not None:
