@@ -6,6 +6,7 @@ Run from the repository root:
 
     python bench/scale.py                                  # d = 3: N = 1k … 16k; d = 4, 5: 1k
     python bench/scale.py --cases 3:1024 3:2048 --timeout 900 --json scale.json
+    python bench/scale.py --cache /tmp/ls-inputs     # keep the LS inputs for the next run
 
 Columns: N, d, LPs, rows of the largest LP, total wall time of `jam` (s), wall time per LP,
 share of it inside the LP solver, peak RSS (MB), phi_J, isostatic, force balance.
@@ -23,11 +24,18 @@ import textwrap
 DEFAULT_CASES = ["3:1024", "3:2048", "3:4096", "3:8192", "3:16384", "4:1024", "5:1024"]
 
 CHILD = textwrap.dedent("""
-    import json, resource, sys, time
-    import calippso, generators
-    d, n, pressure = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
-    start = generators.lubachevsky_stillinger(generators.diameters.monodisperse(n), d=d,
-                                              target_pressure=pressure, seed=1).packing
+    import json, os, resource, sys, time
+    import calippso
+    d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+    path = os.path.join(cache, f"ls_d{d}_n{n}_p{pressure:g}_seed1.npz") if cache else ""
+    if path and os.path.exists(path):
+        start = calippso.read(path)
+    else:
+        import generators
+        start = generators.lubachevsky_stillinger(generators.diameters.monodisperse(n), d=d,
+                                                  target_pressure=pressure, seed=1).packing
+        if path:
+            calippso.write(start, path)
     clock = time.perf_counter()
     result = calippso.jam(start)
     total = time.perf_counter() - clock
@@ -41,10 +49,10 @@ CHILD = textwrap.dedent("""
 """)
 
 
-def run_case(d: int, n: int, pressure: float, timeout: float) -> dict:
-    """Generate and jam one input in a subprocess; the row as a dict."""
+def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "") -> dict:
+    """Generate (or read from `cache`) and jam one input in a subprocess; the row as a dict."""
     try:
-        done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure)],
+        done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache],
                               capture_output=True, text=True, timeout=timeout, check=True)
     except subprocess.TimeoutExpired:
         return {"n": n, "d": d, "timeout": timeout}
@@ -71,6 +79,7 @@ def main() -> None:
     parser.add_argument("--pressure", type=float, default=1e5)
     parser.add_argument("--timeout", type=float, default=3600.0, help="seconds per case")
     parser.add_argument("--json", help="also write the rows to this JSON file")
+    parser.add_argument("--cache", default="", help="folder where LS inputs are kept and reused")
     args = parser.parse_args()
 
     print(f"{'N':>6} {'d':>2} {'LPs':>4} {'rows':>8} {'total s':>9} {'s/LP':>7} "
@@ -78,7 +87,7 @@ def main() -> None:
     rows = []
     for case in args.cases:
         d, n = (int(v) for v in case.split(":"))
-        rows.append(run_case(d, n, args.pressure, args.timeout))
+        rows.append(run_case(d, n, args.pressure, args.timeout, args.cache))
         print(format_row(rows[-1]), flush=True)
         if args.json:
             with open(args.json, "w") as stream:

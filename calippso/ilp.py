@@ -16,7 +16,7 @@ from __future__ import annotations
 import hashlib
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -175,6 +175,7 @@ class _Step:
     max_displacement: float        # over non-rattlers, mean diameters
     max_contacting: float          # over particles with at least one contact (before removal)
     stable_fraction: float         # fraction of particles that are not rattlers
+    offered_warm_start: bool = False   # the LP was given the previous LP's basis
 
     @property
     def displacements(self) -> np.ndarray:
@@ -183,6 +184,12 @@ class _Step:
     @property
     def n_contacts(self) -> int:
         return int(self.contact_rows.shape[0])
+
+    @property
+    def hypostatic(self) -> bool:
+        """Fewer contacts than d (N_s − 1) + 1, or no stable particle at all."""
+        n_stable = int(self.rattlers.size - self.rattlers.sum())
+        return n_stable == 0 or isostaticity_gap(self.n_contacts, n_stable, self.lp.d) < 0
 
     @property
     def normalization(self) -> float:
@@ -247,7 +254,7 @@ class _Jammer:
         self.retried_lps = 0
         self.stalled = False
         self.forced = np.zeros((0, 2), dtype=np.int64)
-        self.basis: Basis | None = None   # optimal basis of the last accepted LP
+        self.basis: Basis | None = None   # warm start of the next LP
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
         self._check_input_overlaps()
         self.step = initial_step_bound(self.search, settings)
@@ -341,11 +348,33 @@ class _Jammer:
                         self.notes.append(f"LP {self.lps_solved + 1} needed a retry ({name}, "
                                           f"bound {bound:.1e}) after: {'; '.join(failures)}")
                     self.retried_lps += 1
-                return self._analyse(lp, solution, stable)
+                taken = self._analyse(lp, solution, stable)
+                if solution.warm_started and taken.hypostatic:
+                    taken = self._cold_resolve(name, lp, taken, stable)
+                taken.offered_warm_start = warm_start is not None
+                return taken
             failures.append(f"{name} (bound {bound:.1e}): {problem}")
             warm_start = None   # retries start from scratch
         raise self._fail(f"every LP backend failed at LP {self.lps_solved + 1}: "
                          + "; ".join(failures))
+
+    def _cold_resolve(self, name: str, lp: LinearProgram, taken: _Step,
+                      stable: np.ndarray | None) -> _Step:
+        """The same LP solved from scratch, when a warm-started vertex gave a hypostatic network.
+
+        At a degenerate optimum (crystalline patches, nearly redundant contacts) the simplex
+        from an old basis can end at a vertex whose duals leave out contacts; interior point +
+        crossover ends near the centre of the optimal face and keeps them. Keeps the warm
+        solution if the cold one fails its checks.
+        """
+        try:
+            cold = get_solver(name)(lp, self.settings, warm_start=None)
+        except (SolverError, ValueError, RuntimeError, MemoryError):
+            return taken
+        if _solution_problem(lp, cold) is not None:
+            return taken
+        return self._analyse(lp, replace(cold, seconds=cold.seconds + taken.solution.seconds),
+                             stable)
 
     def _analyse(self, lp: LinearProgram, solution: LPSolution,
                  stable: np.ndarray | None) -> _Step:
@@ -457,11 +486,7 @@ class _Jammer:
                 break
             # adapt from the bound the accepted LP had (a retry may have used a smaller one)
             self.step = next_step_bound(step_result.lp.step_bound, step_result, settings)
-            # A bound that had to grow (a stable particle was held by it) means the particles
-            # still travel far: the next optimal basis is far from this one, and a cold
-            # interior-point solve is cheaper than a warm-started simplex.
-            grew = self.step > 2.0 * step_result.lp.step_bound
-            self.basis = None if grew else step_result.solution.basis
+            self.basis = self._warm_start_basis(step_result)
             if (settings.newton and record["isostaticity_gap"] == 0 and record["n_contacts"]
                     and step_result.max_displacement < settings.newton_start):
                 refined = self._newton(network)
@@ -478,6 +503,19 @@ class _Jammer:
         if network is None:
             raise self._fail(f"no LP was solved (max_iters = {settings.max_iters})")
         return self._finish(network, converged, stopped)
+
+    def _warm_start_basis(self, taken: _Step) -> Basis | None:
+        """The basis the next LP starts from, or None for a cold start.
+
+        A warm start pays off when consecutive LPs differ little. It does not when a stable
+        particle moved by half the bound or more (the particles still travel far, so the next
+        optimal basis is far from this one), nor right after a warm start that failed
+        (the next LP is then solved cold, and the one after tries again).
+        """
+        warm_failed = taken.offered_warm_start and not taken.solution.warm_started
+        if warm_failed or taken.max_displacement >= 0.5 * taken.lp.step_bound:
+            return None
+        return taken.solution.basis
 
     def _stalled(self) -> bool:
         """The last `STALL_LPS` LPs gained nothing in Γ and did not shrink the displacements."""
