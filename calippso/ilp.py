@@ -300,6 +300,12 @@ class _Jammer:
     def _check_input_overlaps(self) -> None:
         close = self.search.pairs_within(float(self.diameters.max()))
         gaps = close.gaps
+        duplicated = close.distances <= 1e-12 * close.sigma
+        if duplicated.any():
+            k = int(np.flatnonzero(duplicated)[0])
+            raise ValueError(
+                f"duplicated particles in the input: particles {close.i[k]} and {close.j[k]} sit "
+                f"at the same position (modulo the box); {int(duplicated.sum())} such pair(s)")
         if gaps.size and gaps.min() < -self.settings.overlap_tolerance:
             k = int(np.argmin(gaps))
             count = int(np.count_nonzero(gaps < -self.settings.overlap_tolerance))

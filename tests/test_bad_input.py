@@ -84,7 +84,7 @@ def _overlapping(amount: float) -> Packing:
     return Packing(positions, np.ones(2), np.full(3, 4.0))
 
 
-DUPLICATE = "overlapping particles in the input: 1 pair\\(s\\) overlap, the worst is \\(2, 5\\) with gap h = .*-1.000e\\+00"
+DUPLICATE = r"duplicated particles in the input: particles 2 and 5 sit at the same position"
 
 
 @pytest.mark.parametrize("call, error, pattern", [
