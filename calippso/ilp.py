@@ -42,6 +42,9 @@ CLEANUP_STEP = 1e-3
 #: A pair outside the contact network may overlap by at most this relative gap at a Newton
 #: solution (round-off); more means the network is not the jammed one.
 NEWTON_OVERLAP_TOLERANCE = 1e-12
+#: `_check_box_size` stops a run whose largest diameter reaches (1 − this) × half the box
+#: side with no stable particle.
+SMALL_BOX_MARGIN = 1e-3
 #: Smallest first bound on displacements chosen by `initial_step_bound` (mean diameters).
 INITIAL_STEP_FLOOR = 1e-3
 #: The loop stops as stalled (not converged) after this many LPs without progress.
@@ -485,6 +488,7 @@ class _Jammer:
             if self._stop_requested(record):
                 stopped, converged = True, False
                 break
+            self._check_box_size(step_result)
             if converged:
                 break
             if self._stalled():
@@ -522,6 +526,23 @@ class _Jammer:
         if warm_failed or taken.max_displacement >= 0.5 * taken.lp.step_bound:
             return None
         return taken.solution.basis
+
+    def _check_box_size(self, taken: _Step) -> None:
+        """Stop with an error when the particles grow to half the box side without jamming.
+
+        Pairs are taken at their minimum image, which describes the packing only while every
+        contact distance stays below half the box side. A small periodic box (few particles,
+        high d) can leave every particle a rattler until the diameters approach that limit;
+        the loop would then creep towards it with ever smaller steps.
+        """
+        half = 0.5 * float(self.box.min())
+        largest = float(self.diameters.max())
+        if taken.stable_fraction == 0 and largest >= (1.0 - SMALL_BOX_MARGIN) * half:
+            raise self._fail(
+                f"box too small: the largest diameter has grown to {largest / half:.4f} x half "
+                f"the box side after {self.lps_solved} LPs with no stable particle; the "
+                f"packing cannot jam under the minimum-image convention in this box (use more "
+                f"particles or a larger box)")
 
     def _stalled(self) -> bool:
         """The last `STALL_LPS` LPs gained nothing in Γ and did not shrink the displacements."""
