@@ -73,16 +73,20 @@ def plot(files: list[Path], image: Path) -> None:
 
     rows = [row for file in files for row in json.loads(file.read_text())]
     figure, (left, middle, right) = plt.subplots(1, 3, figsize=(15, 4.2))
-    groups = sorted({(str(_rotation(row)), row.get("contraction_rate", 1e-4)) for row in rows})
-    for rotation, rate in groups:
-        chosen = [row for row in rows
-                  if (str(_rotation(row)), row.get("contraction_rate", 1e-4)) == (rotation, rate)]
+    def series(row: dict) -> str:
+        """A row's curve: its "series" entry, else its rotation step and contraction rate."""
+        if "series" in row:
+            return row["series"]
+        rotation = _rotation(row)
+        what = "rigid-body ε_r (default)" if rotation == "rigid" else f"ε_r = {rotation:g}"
+        return f"{what}, τ = {row.get('contraction_rate', 1e-4):g}"
+
+    for label in sorted({series(row) for row in rows}):
+        chosen = [row for row in rows if series(row) == label]
         gammas = sorted({row["gamma"] for row in chosen})
         phi = [[row["phi"] for row in chosen if row["gamma"] == g] for g in gammas]
         order = [[row["S"] for row in chosen if row["gamma"] == g] for g in gammas]
-        what = "rigid-body ε_r (default)" if rotation == "rigid" else f"ε_r = {float(rotation):g}"
-        label = f"{what}, τ = {rate:g}"
-        marker = "o" if rotation == "rigid" else "s"
+        marker = "o" if "rigid" in label else "s"
         left.errorbar(gammas, [np.mean(p) for p in phi], [np.std(p) for p in phi],
                       marker=marker, capsize=3, label=label)
         middle.errorbar(gammas, [np.mean(p) * g for p, g in zip(phi, gammas)],
@@ -92,16 +96,16 @@ def plot(files: list[Path], image: Path) -> None:
     reference = np.linspace(4, 90, 100)
     left.plot(reference, 4.5 / reference, "k--", lw=1, label="φ = 4.5/γ (Bargiel)")
     left.plot([0.4], [0.705], "k*", ms=10, label="Bargiel max 0.705")
-    left.set(xlabel="aspect ratio γ = l/d", ylabel="φ", yscale="log", ylim=(0.04, 0.8))
+    left.set(xlabel="aspect ratio γ = l/d", ylabel="φ", yscale="log", ylim=(0.02, 0.8))
     middle.axhspan(4.5 * 0.85, 4.5 * 1.15, color="0.85", label="Bargiel 4.5 ± 15 %")
     middle.axhline(5.4, color="k", ls=":", lw=1, label="Williams–Philipse 5.4")
-    middle.set(xlabel="aspect ratio γ = l/d", ylabel="φ γ", ylim=(0, 6))
+    middle.set(xlabel="aspect ratio γ = l/d", ylabel="φ γ", ylim=(0, 8.5))
     right.set(xlabel="aspect ratio γ = l/d", ylabel="nematic order S")
     right.axhline(0.05, color="k", ls=":", lw=1)
-    for axis in (left, middle, right):
-        axis.legend(fontsize=7)
+    for axis, where in ((left, "lower left"), (middle, "upper left"), (right, "upper left")):
+        axis.legend(fontsize=6.5, loc=where)
         axis.set_xscale("symlog", linthresh=1.0)
-        axis.set_xlim(left=-0.1)
+        axis.set_xlim(-0.1, 100)
     figure.tight_layout()
     figure.savefig(image, dpi=110)
 

@@ -43,7 +43,7 @@ from .cells import pair_list
 from .geometry import min_distance_ratio, minimum_image_component, segment_distance2
 from .packing import SpherocylinderPacking
 
-__all__ = ["force_biased", "estimated_density", "rigid_body_eps_rot"]
+__all__ = ["estimated_density", "force_biased", "rigid_body_eps_rot"]
 
 #: Verlet skin, in units of the largest nominal diameter.
 SKIN = 0.3
