@@ -96,6 +96,15 @@ def test_gaps_are_the_non_contact_pairs_of_stable_particles(jammed):
     assert np.all(np.diff(h) >= 0)
 
 
+def test_touching_pairs_without_force_are_not_gaps(jammed):
+    """A pair at contact distance that is not in the contact list is left out of the gaps."""
+    import dataclasses
+
+    dropped = dataclasses.replace(jammed, contacts=jammed.contacts[1:],
+                                  forces=jammed.forces[1:])
+    np.testing.assert_array_equal(gaps(dropped, 0.05), gaps(jammed, 0.05))
+
+
 def test_pooled_gap_cumulative_is_per_stable_particle(jammed):
     sample = pooled_gaps(jammed, max_gap=0.1)
     x, c = sample.cumulative()

@@ -11,10 +11,13 @@ from ..result import JammingResult
 from ._inputs import as_results
 from .sample import PooledSample
 
-__all__ = ["DEFAULT_MAX_GAP", "gaps", "pooled_gaps"]
+__all__ = ["DEFAULT_MAX_GAP", "TOUCHING", "gaps", "pooled_gaps"]
 
 #: Largest gap h kept by default (pairs with |r_ij| ≤ 1.1 σ_ij).
 DEFAULT_MAX_GAP = 0.1
+#: Pairs with h below this touch to round-off: a touching pair without force (a degenerate
+#: contact, met in partly ordered packings) is neither a contact nor a gap, and is left out.
+TOUCHING = 1e-10
 
 
 def gaps(result: JammingResult, max_gap: float = DEFAULT_MAX_GAP) -> np.ndarray:
@@ -30,8 +33,9 @@ def gaps(result: JammingResult, max_gap: float = DEFAULT_MAX_GAP) -> np.ndarray:
     Returns
     -------
     ndarray, shape (K,)
-        Gaps h_ij of every non-contact pair (i, j) of stable particles with h_ij ≤ max_gap,
-        ascending. Contacts (the pairs in `result.contacts`) are never included.
+        Gaps h_ij of every non-contact pair (i, j) of stable particles with
+        `TOUCHING` < h_ij ≤ max_gap, ascending. Contacts (the pairs in `result.contacts`) are
+        never included, nor are touching pairs that carry no force (h_ij ≤ `TOUCHING`).
     """
     if not max_gap > 0:
         raise ValueError(f"max_gap must be positive, got {max_gap!r}")
@@ -42,7 +46,8 @@ def gaps(result: JammingResult, max_gap: float = DEFAULT_MAX_GAP) -> np.ndarray:
     keys = pairs.i * packing.n + pairs.j
     contact_keys = result.contacts[:, 0] * packing.n + result.contacts[:, 1]
     h = pairs.gaps
-    keep = stable[pairs.i] & stable[pairs.j] & ~np.isin(keys, contact_keys) & (h <= max_gap)
+    keep = (stable[pairs.i] & stable[pairs.j] & ~np.isin(keys, contact_keys)
+            & (h > TOUCHING) & (h <= max_gap))
     return np.sort(h[keep])
 
 
