@@ -183,7 +183,7 @@ def test_duplicated_particle_is_refused():
     start = random_sequential_addition(32, 3, 0.2, seed=9)
     positions = start.positions.copy()
     positions[1] = positions[0]
-    with pytest.raises(ValueError, match="overlapping"):
+    with pytest.raises(ValueError, match="duplicated particles.*particles 0 and 1"):
         jam(Packing(positions, start.diameters, start.box))
 
 
