@@ -78,6 +78,7 @@ def _mapped_basis(previous: Basis, lp: LinearProgram) -> highspy.HighsBasis | No
     basis.col_status = [_STATUS[v] for v in previous.col_status]
     basis.row_status = [_STATUS[v] for v in row_status]
     basis.valid = True
+    basis.alien = False   # a basis of this LP family: skip HiGHS re-factorising it in setBasis
     return basis
 
 
