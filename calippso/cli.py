@@ -451,9 +451,18 @@ def _jam_record(result, source, output: Path | None) -> dict:
     show_default=True,
     help="Largest number of LPs.",
 )
+@click.option(
+    "--precompress",
+    "precompress_pressure",
+    type=positive(float),
+    default=None,
+    help="First compress a loose input by Lubachevsky-Stillinger MD to this reduced pressure "
+    "(e.g. 1e5), then run the LP loop.",
+)
 @checkpoint_option
 @output_options
-def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, checkpoint, out):
+def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, precompress_pressure,
+        checkpoint, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
@@ -468,6 +477,7 @@ def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, checkpoint, out
         tol_gamma=tol_gamma,
         tol_s=tol_s,
         max_iters=max_iters,
+        precompress_pressure=precompress_pressure,
         checkpoint=checkpoint,
     )
     written = calippso.write(result, output)

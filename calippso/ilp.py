@@ -30,6 +30,7 @@ from .lp import LinearProgram, build_lp, largest_safe_step, select_pairs
 from .neighbors import NeighborSearch, Pairs
 from .newton import refine_isostatic
 from .packing import Packing, wrap
+from .precompress import precompress, precompress_checkpoint
 from .result import JammingResult, history_from_records
 from .settings import JamSettings
 from .solvers import Basis, LPSolution, get_solver
@@ -88,7 +89,9 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         ValueError) and gives the result the uninterrupted run would have given.
     **options
         Further `JamSettings` fields (e.g. ``initial_step``, ``max_step``,
-        ``contact_threshold``, ``feasibility_tolerance``).
+        ``contact_threshold``, ``feasibility_tolerance``). ``precompress_pressure=1e5``
+        first compresses a loose input by Lubachevsky–Stillinger MD (`calippso.precompress`);
+        with a checkpoint, that stage keeps its own file beside it (``*.precompress.npz``).
 
     Returns
     -------
@@ -104,7 +107,18 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     """
     settings = JamSettings.from_options(solver=solver, tol_gamma=tol_gamma, tol_s=tol_s,
                                         max_iters=max_iters, verbose=verbose, **options)
-    return _Jammer(_as_packing(packing, diameters, box), settings, callback, checkpoint).run()
+    start = time.perf_counter()
+    packing = _as_packing(packing, diameters, box)
+    notes = []
+    if settings.precompress_pressure is not None:
+        scale = packing.mean_diameter
+        check_input_overlaps(NeighborSearch(wrap(packing.positions / scale, packing.box / scale),
+                                            packing.diameters / scale, packing.box / scale),
+                             settings.overlap_tolerance)
+        packing, note = precompress(packing, settings.precompress_pressure,
+                                    precompress_checkpoint(checkpoint))
+        notes.append(note)
+    return _Jammer(packing, settings, callback, checkpoint, start=start, notes=notes).run()
 
 
 def _as_packing(packing, diameters, box) -> Packing:
@@ -115,6 +129,28 @@ def _as_packing(packing, diameters, box) -> Packing:
     if diameters is None or box is None:
         raise TypeError("jam(positions, diameters, box): diameters and box are required")
     return Packing(packing, diameters, box)
+
+
+def check_input_overlaps(search: NeighborSearch, tolerance: float) -> None:
+    """Raise ValueError naming duplicated or overlapping particles of an input.
+
+    Overlaps down to a relative gap h = |r|/σ − 1 > −`tolerance` are round-off and accepted.
+    """
+    close = search.pairs_within(float(search.diameters.max()))
+    gaps = close.gaps
+    duplicated = close.distances <= 1e-12 * close.sigma
+    if duplicated.any():
+        k = int(np.flatnonzero(duplicated)[0])
+        raise ValueError(
+            f"duplicated particles in the input: particles {close.i[k]} and {close.j[k]} sit "
+            f"at the same position (modulo the box); {int(duplicated.sum())} such pair(s)")
+    if gaps.size and gaps.min() < -tolerance:
+        k = int(np.argmin(gaps))
+        count = int(np.count_nonzero(gaps < -tolerance))
+        raise ValueError(
+            f"overlapping particles in the input: {count} pair(s) overlap, the worst is "
+            f"({close.i[k]}, {close.j[k]}) with gap h = |r|/sigma - 1 = {gaps[k]:.3e} "
+            f"(accepted as round-off: h > -{tolerance:g})")
 
 
 def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
@@ -238,10 +274,11 @@ class _Jammer:
     """State of one `jam` call (internal units: mean input diameter = 1)."""
 
     def __init__(self, packing: Packing, settings: JamSettings, callback,
-                 checkpoint: str | os.PathLike | None = None):
+                 checkpoint: str | os.PathLike | None = None, start: float | None = None,
+                 notes: list[str] | None = None):
         self.settings = settings
         self.callback = callback
-        self.start = time.perf_counter()
+        self.start = time.perf_counter() if start is None else start
         self.scale = packing.mean_diameter
         self.n, self.d = packing.n, packing.d
         self.box = packing.box / self.scale
@@ -251,7 +288,7 @@ class _Jammer:
         if settings.pin:
             self.fixed[0] = True
         self.records: list[dict] = []
-        self.notes: list[str] = []
+        self.notes: list[str] = list(notes or [])
         self.solver_name = settings.solver
         self.failed_networks: set[str] = set()
         self.retried_lps = 0
@@ -259,7 +296,7 @@ class _Jammer:
         self.forced = np.zeros((0, 2), dtype=np.int64)
         self.basis: Basis | None = None   # warm start of the next LP
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
-        self._check_input_overlaps()
+        check_input_overlaps(self.search, settings.overlap_tolerance)
         self.step = initial_step_bound(self.search, settings)
         self.checkpoint = None if checkpoint is None else Path(checkpoint)
         if self.checkpoint is not None:
@@ -299,23 +336,6 @@ class _Jammer:
     def _fail(self, message: str) -> JammingError:
         return JammingError(message, packing=self.packing(),
                             history=history_from_records(self.records))
-
-    def _check_input_overlaps(self) -> None:
-        close = self.search.pairs_within(float(self.diameters.max()))
-        gaps = close.gaps
-        duplicated = close.distances <= 1e-12 * close.sigma
-        if duplicated.any():
-            k = int(np.flatnonzero(duplicated)[0])
-            raise ValueError(
-                f"duplicated particles in the input: particles {close.i[k]} and {close.j[k]} sit "
-                f"at the same position (modulo the box); {int(duplicated.sum())} such pair(s)")
-        if gaps.size and gaps.min() < -self.settings.overlap_tolerance:
-            k = int(np.argmin(gaps))
-            count = int(np.count_nonzero(gaps < -self.settings.overlap_tolerance))
-            raise ValueError(
-                f"overlapping particles in the input: {count} pair(s) overlap, the worst is "
-                f"({close.i[k]}, {close.j[k]}) with gap h = |r|/sigma - 1 = {gaps[k]:.3e} "
-                f"(accepted as round-off: h > -{self.settings.overlap_tolerance:g})")
 
     def _pairs(self, search: NeighborSearch, step: float, stable: np.ndarray | None,
                forced: np.ndarray) -> Pairs:

@@ -63,6 +63,11 @@ class JamSettings:
     warm_start : bool
         Start each LP from the optimal basis of the previous one (HiGHS: primal simplex from
         that basis, interior point + crossover when it does not pay off).
+    precompress_pressure : float or None
+        If set, first compress the input by Lubachevsky–Stillinger event-driven MD until this
+        reduced pressure (`calippso.precompress`), then run the LP loop from there. For loose
+        inputs (φ well below jamming), where the LP loop alone crawls for hundreds of LPs.
+        The result is the jamming point of the compressed state. None: LP loop only.
     pin : bool
         Fix one particle's displacement to remove the d translational zero modes.
     verbose : bool
@@ -88,6 +93,7 @@ class JamSettings:
     newton_start: float = 1e-4
     verify_newton: bool = False
     warm_start: bool = True
+    precompress_pressure: float | None = None
     pin: bool = True
     verbose: bool = False
 
@@ -99,6 +105,9 @@ class JamSettings:
                      "newton_start"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
+        if self.precompress_pressure is not None and not self.precompress_pressure > 0:
+            raise ValueError(
+                f"precompress_pressure must be > 0 or None, got {self.precompress_pressure!r}")
         if self.initial_step is not None and not self.initial_step > 0:
             raise ValueError(f"initial_step must be > 0, got {self.initial_step!r}")
         if not self.min_step <= self.max_step:

@@ -183,3 +183,13 @@ def test_jam_checkpoint_resumes_to_the_same_result(capfd, tmp_path, start_2d):
     assert again[0] == 0
     a, b = (calippso.load_result(tmp_path / name) for name in ("a.npz", "b.npz"))
     assert a.phi == b.phi and (a.contacts == b.contacts).all()
+
+
+def test_jam_precompress_option(capfd, tmp_path, start_2d):
+    code, out, _ = _run(capfd, "jam", start_2d, "--precompress", "1e5", "-o",
+                        tmp_path / "jammed.npz", "--json", "--quiet")
+    assert code == 0
+    record = json.loads(out)
+    assert record["converged"] and record["isostatic"]
+    assert "compressed by Lubachevsky-Stillinger" in calippso.load_result(
+        tmp_path / "jammed.npz").status
