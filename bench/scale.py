@@ -7,6 +7,11 @@ Run from the repository root:
     python bench/scale.py                                  # d = 3: N = 1k … 16k; d = 4, 5: 1k
     python bench/scale.py --cases 3:1024 3:2048 --timeout 900 --json scale.json
     python bench/scale.py --cache /tmp/ls-inputs     # keep the LS inputs for the next run
+    python bench/scale.py --from-json a.json b.json --plot docs/images/scale.png
+
+With --from-json no case is run: the rows are read back (later files win for the same N, d),
+printed, and with --plot drawn as wall time and LPs against N on log-log axes, with the
+fitted exponent of the wall time over the d = 3 rows.
 
 Columns: N, d, LPs, rows of the largest LP, total wall time of `jam` (s), wall time per LP,
 share of it inside the LP solver, peak RSS (MB), phi_J, isostatic, force balance.
@@ -73,6 +78,60 @@ def format_row(row: dict) -> str:
             f"{'yes' if row['isostatic'] else 'NO':>4} {row['balance']:>8.1e}")
 
 
+def growth_exponent(rows: list[dict]) -> float | None:
+    """Least-squares slope of log(total time) against log(N) over the finished d = 3 rows."""
+    import numpy as np
+
+    done = [row for row in rows if row["d"] == 3 and "total" in row]
+    if len(done) < 2:
+        return None
+    return float(np.polyfit(np.log([r["n"] for r in done]), np.log([r["total"] for r in done]),
+                            1)[0])
+
+
+def plot(rows: list[dict], path: str) -> None:
+    """Wall time and LP count against N (d = 3; d = 4, 5 as single points), log-log."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, (left, right) = plt.subplots(1, 2, figsize=(9, 3.8))
+    for d, marker in ((3, "o"), (4, "s"), (5, "^")):
+        done = sorted((r for r in rows if r["d"] == d and "total" in r), key=lambda r: r["n"])
+        if not done:
+            continue
+        n = [r["n"] for r in done]
+        left.loglog(n, [r["total"] for r in done], marker=marker, label=f"d = {d}")
+        right.loglog(n, [r["lps"] for r in done], marker=marker, label=f"d = {d}")
+    slope = growth_exponent(rows)
+    title = "wall time of jam (LS input, p = 1e5)"
+    left.set(xlabel="N", ylabel="s", title=title + (f"\nd = 3 exponent {slope:.2f}"
+                                                     if slope is not None else ""))
+    right.set(xlabel="N", ylabel="LPs", title="LPs solved")
+    for axes in (left, right):
+        axes.legend()
+        axes.grid(True, which="both", alpha=0.3)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+
+
+def print_rows(rows: list[dict]) -> None:
+    print(f"{'N':>6} {'d':>2} {'LPs':>4} {'rows':>8} {'total s':>9} {'s/LP':>7} "
+          f"{'solver':>7} {'RSS MB':>8} {'phi_J':>11} {'iso':>4} {'balance':>8}", flush=True)
+    for row in rows:
+        print(format_row(row), flush=True)
+
+
+def read_rows(paths: list[str]) -> list[dict]:
+    """Rows of earlier --json files; a later file's row replaces an earlier one (same N, d)."""
+    merged: dict[tuple[int, int], dict] = {}
+    for path in paths:
+        with open(path) as stream:
+            for row in json.load(stream):
+                merged[(row["d"], row["n"])] = row
+    return sorted(merged.values(), key=lambda r: (r["d"], r["n"]))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", nargs="+", default=DEFAULT_CASES, help="inputs as d:N")
@@ -80,10 +139,21 @@ def main() -> None:
     parser.add_argument("--timeout", type=float, default=3600.0, help="seconds per case")
     parser.add_argument("--json", help="also write the rows to this JSON file")
     parser.add_argument("--cache", default="", help="folder where LS inputs are kept and reused")
+    parser.add_argument("--from-json", nargs="+", metavar="JSON",
+                        help="run nothing: read rows written by --json")
+    parser.add_argument("--plot", help="draw the rows to this image (needs matplotlib)")
     args = parser.parse_args()
 
-    print(f"{'N':>6} {'d':>2} {'LPs':>4} {'rows':>8} {'total s':>9} {'s/LP':>7} "
-          f"{'solver':>7} {'RSS MB':>8} {'phi_J':>11} {'iso':>4} {'balance':>8}", flush=True)
+    if args.from_json:
+        rows = read_rows(args.from_json)
+        print_rows(rows)
+        slope = growth_exponent(rows)
+        if slope is not None:
+            print(f"d = 3 wall-time exponent (log-log fit): {slope:.2f}")
+        if args.plot:
+            plot(rows, args.plot)
+        return
+    print_rows([])
     rows = []
     for case in args.cases:
         d, n = (int(v) for v in case.split(":"))
@@ -92,6 +162,8 @@ def main() -> None:
         if args.json:
             with open(args.json, "w") as stream:
                 json.dump(rows, stream, indent=1)
+    if args.plot:
+        plot(rows, args.plot)
 
 
 if __name__ == "__main__":
