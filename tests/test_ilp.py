@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -227,3 +231,13 @@ def test_every_backend_failing_keeps_last_configuration(monkeypatch):
         jam(start)
     assert caught.value.packing is not None
     np.testing.assert_allclose(caught.value.packing.positions, start.wrapped().positions)
+
+
+
+def test_jam_writes_nothing_to_standard_output():
+    """highspy prints a banner when a process builds its first solver object: not to stdout."""
+    code = ("import calippso; from configurations import random_sequential_addition; "
+            "calippso.jam(random_sequential_addition(32, 3, 0.3, seed=1))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, cwd=Path(__file__).parent)
+    assert done.stdout == ""

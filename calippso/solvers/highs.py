@@ -3,6 +3,9 @@ warm-started from the previous LP's basis."""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
 import time
 
 import highspy
@@ -22,6 +25,46 @@ _STATUS = {int(v): v for v in (highspy.HighsBasisStatus.kLower, highspy.HighsBas
                                highspy.HighsBasisStatus.kUpper, highspy.HighsBasisStatus.kZero,
                                highspy.HighsBasisStatus.kNonbasic)}
 _BASIC = int(highspy.HighsBasisStatus.kBasic)
+
+
+_banner_silenced = False
+
+
+def _quiet_highs() -> highspy.Highs:
+    """A `Highs` object with its output off.
+
+    highspy prints a banner to the C-level standard output when the first `Highs` object of
+    the process is built, before any option can be set. That first construction runs with
+    file descriptor 1 sent to the null device, so that `jam` writes nothing it was not asked
+    to (the CLI may be writing results to standard output).
+    """
+    global _banner_silenced
+    if _banner_silenced:
+        highs = highspy.Highs()
+    else:
+        with _stdout_to_devnull():
+            highs = highspy.Highs()
+        _banner_silenced = True
+    highs.setOptionValue("output_flag", False)
+    return highs
+
+
+@contextlib.contextmanager
+def _stdout_to_devnull():
+    """Point file descriptor 1 at the null device for the duration (no-op without one)."""
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _model(lp: LinearProgram) -> highspy.HighsLp:
@@ -108,8 +151,7 @@ def solve(lp: LinearProgram, settings: JamSettings, warm_start: Basis | None = N
     point + crossover.
     """
     start = time.perf_counter()
-    highs = highspy.Highs()
-    highs.setOptionValue("output_flag", False)
+    highs = _quiet_highs()
     highs.setOptionValue("primal_feasibility_tolerance", settings.feasibility_tolerance)
     highs.setOptionValue("dual_feasibility_tolerance", settings.feasibility_tolerance)
     highs.passModel(_model(lp))
