@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["contact_mask", "remove_rattlers", "net_forces", "force_balance",
-           "isostaticity_gap"]
+           "isostaticity_gap", "equilibrium_matrix", "polish_forces", "positive_self_stress"]
+
+#: `positive_self_stress` takes forces as balanced when the largest net force is below this
+#: times the largest force.
+SELF_STRESS_TOLERANCE = 1e-10
 
 
 def contact_mask(duals: np.ndarray, relative_threshold: float) -> np.ndarray:
@@ -83,6 +87,23 @@ def isostaticity_gap(n_contacts: int, n_stable: int, d: int) -> int:
     return n_contacts - d * (n_stable - 1) - 1
 
 
+def equilibrium_matrix(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray):
+    """The (n·d, M) sparse matrix mapping contact forces to the net force on each particle.
+
+    Column k holds +n_k in the rows of particle i_k and −n_k in those of j_k, so that the
+    product with the forces f is Σ_j f_ij n_ij for every particle (flattened, particle-major).
+    """
+    from scipy.sparse import csr_matrix
+
+    m, d = normals.shape
+    contact = np.arange(m)
+    rows = np.concatenate([(i[:, None] * d + np.arange(d)).ravel(),
+                           (j[:, None] * d + np.arange(d)).ravel()])
+    cols = np.concatenate([np.repeat(contact, d), np.repeat(contact, d)])
+    values = np.concatenate([normals.ravel(), -normals.ravel()])
+    return csr_matrix((values, (rows, cols)), shape=(n * d, m))
+
+
 def polish_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
                   weights: np.ndarray, forces: np.ndarray) -> np.ndarray:
     """Refine contact forces so that every particle is in balance to round-off.
@@ -113,18 +134,77 @@ def polish_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
     from scipy.sparse import csr_matrix, vstack
     from scipy.sparse.linalg import lsqr
 
-    m, d = normals.shape
-    contact = np.arange(m)
-    rows = np.concatenate([(i[:, None] * d + np.arange(d)).ravel(),
-                           (j[:, None] * d + np.arange(d)).ravel()])
-    cols = np.concatenate([np.repeat(contact, d), np.repeat(contact, d)])
-    values = np.concatenate([normals.ravel(), -normals.ravel()])
-    equilibrium = csr_matrix((values, (rows, cols)), shape=(n * d, m))
-    system = vstack([equilibrium, csr_matrix(weights[None, :])]).tocsr()
-    target = np.zeros(n * d + 1)
+    m = normals.shape[0]
+    system = vstack([equilibrium_matrix(n, i, j, normals),
+                     csr_matrix(weights[None, :])]).tocsr()
+    target = np.zeros(system.shape[0])
     target[-1] = 1.0
     start = forces / float(weights @ forces)
     correction = lsqr(system, target - system @ start, atol=1e-16, btol=1e-16,
                       iter_lim=20 * m)[0]
     polished = start + correction
     return polished / float(weights @ polished)
+
+
+def positive_self_stress(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
+                         weights: np.ndarray) -> np.ndarray | None:
+    """A self-stress of the network with every force positive, as close to uniform as found.
+
+    A hyperstatic network (more contacts than the isostatic count) has a space of
+    self-stresses. The one nearest to uniform forces (least squares) is returned when all its
+    forces are positive. Otherwise the self-stress whose smallest force is largest is found
+    by an LP (scipy's HiGHS), and the returned forces are the point on the segment from the
+    least-squares self-stress to it where the smallest force first reaches half that largest
+    value: as uniform as this segment allows, with every contact carrying force. (If the
+    least-squares forces are not balanced, the network has no self-stress near uniform and
+    the LP's self-stress is returned as it is.)
+
+    Parameters
+    ----------
+    n : int
+        Number of particles.
+    i, j : ndarray, shape (M,)
+        Contacts.
+    normals : ndarray, shape (M, d)
+        Unit vectors n_ij from j to i.
+    weights : ndarray, shape (M,)
+        Coefficients of the normalisation Σ weights·f = 1.
+
+    Returns
+    -------
+    ndarray, shape (M,) or None
+        Forces in balance on every particle, normalised so that weights·f = 1; None when the
+        network has no self-stress with all forces positive.
+    """
+    from scipy.optimize import linprog
+    from scipy.sparse import csr_matrix, hstack, identity, vstack
+
+    m = normals.shape[0]
+    equilibrium = equilibrium_matrix(n, i, j, normals)
+    uniform = polish_forces(n, i, j, normals, weights, np.ones(m))
+    balanced = np.abs(equilibrium @ uniform).max() <= SELF_STRESS_TOLERANCE * np.abs(uniform).max()
+    if balanced and uniform.min() > 0:
+        return uniform
+    # variables (f, t): maximise t subject to A f = 0, weights·f = 1, f ≥ t
+    equalities = vstack([hstack([equilibrium, csr_matrix((equilibrium.shape[0], 1))]),
+                         csr_matrix(np.append(weights, 0.0)[None, :])])
+    right_hand = np.zeros(equalities.shape[0])
+    right_hand[-1] = 1.0
+    floors = hstack([-identity(m), csr_matrix(np.ones((m, 1)))])
+    cost = np.zeros(m + 1)
+    cost[-1] = -1.0
+    solution = linprog(cost, A_ub=floors.tocsr(), b_ub=np.zeros(m), A_eq=equalities.tocsr(),
+                       b_eq=right_hand, bounds=[(0, None)] * m + [(None, None)],
+                       method="highs", options={"primal_feasibility_tolerance": 1e-10,
+                                                "dual_feasibility_tolerance": 1e-10})
+    if solution.status != 0 or solution.x[-1] <= 0:
+        return None
+    widest = polish_forces(n, i, j, normals, weights, solution.x[:-1])
+    floor = 0.5 * float(widest.min())
+    if floor <= 0:
+        return None
+    if not balanced:
+        return widest
+    low = uniform < floor
+    mix = float(np.max((floor - uniform[low]) / (widest[low] - uniform[low])))
+    return uniform + min(mix, 1.0) * (widest - uniform)

@@ -24,7 +24,7 @@ import numpy as np
 
 from .checkpoint import load_state, save_state, signature
 from .contacts import (contact_mask, force_balance, isostaticity_gap, polish_forces,
-                       remove_rattlers)
+                       positive_self_stress, remove_rattlers)
 from .errors import JammingError, SolverError
 from .lp import LinearProgram, build_lp, largest_safe_step, select_pairs
 from .neighbors import NeighborSearch, Pairs
@@ -689,8 +689,8 @@ class _Jammer:
         optimal dual solutions, and a vertex solution may put its weight on a few rows only,
         leaving the others, and particles, looking like non-contacts and rattlers. When the LP
         network is hypostatic or has no stable particle, and the pairs that touch
-        (h < `GEOMETRIC_CONTACT_GAP`) give a network with more stable particles, the touching
-        network is used instead, with the self-stress nearest to uniform forces (sparse least
+        (h < `GEOMETRIC_CONTACT_GAP`) give a network with more stable particles (or as many,
+        and more contacts), the touching network is used instead, with the self-stress nearest to uniform forces (sparse least
         squares), if that self-stress is positive and balanced. Otherwise the LP network is
         kept.
         """
@@ -702,18 +702,20 @@ class _Jammer:
         touching = close.subset(close.gaps < GEOMETRIC_CONTACT_GAP)
         rattlers, kept = remove_rattlers(self.n, self.d, touching.i, touching.j)
         touching = touching.subset(kept)
-        if np.count_nonzero(~rattlers) <= n_stable_lp:
+        n_stable_touching = int(np.count_nonzero(~rattlers))
+        if (n_stable_touching, len(touching)) <= (n_stable_lp, network.i.shape[0]):
             return network, balance
         normals = touching.vectors / touching.distances[:, None]
         weights = touching.sigma**2 / touching.distances
-        forces = polish_forces(self.n, touching.i, touching.j, normals, weights,
-                               np.ones(len(touching)))
+        forces = positive_self_stress(self.n, touching.i, touching.j, normals, weights)
+        if forces is None:
+            return network, balance
         new_balance = force_balance(self.n, touching.i, touching.j, normals, forces, ~rattlers)
-        if forces.min() <= 0 or new_balance > self.settings.balance_tolerance:
+        if new_balance > self.settings.balance_tolerance:
             return network, balance
         self.notes.append(f"contacts taken from the touching pairs (h < "
                           f"{GEOMETRIC_CONTACT_GAP:g}): the LP duals are degenerate here; "
-                          f"forces are the self-stress nearest to uniform")
+                          f"forces are a positive self-stress near uniform")
         return _Network(touching.i, touching.j, forces, rattlers, float(forces @ weights),
                         network.solver, from_lp=False), new_balance
 

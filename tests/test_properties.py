@@ -104,16 +104,13 @@ def test_jam_keeps_every_invariant_or_raises_a_documented_error(parameters):
     check_jam(packing)
 
 
-HYPOSTATIC = pytest.mark.xfail(strict=False, reason=(
-    "jamming core: 7 discs end 'Jammed: converged' with isostaticity gap -1 (one contact "
-    "short of d(N_s - 1) + 1; balance and overlaps fine)"))
-
 #: Examples drawn by the property test that failed (d, N, size spread, phi, seed), kept as
 #: regression cases for the jamming core.
 REGRESSIONS = [
     (2, 7, 0.0, 0.1636538983948269, 7),
     (2, 7, 0.0, 0.12931708561560884, 3),
-    pytest.param((2, 7, 0.0, 0.12931708561560884, 2), marks=HYPOSTATIC),
+    # jammed, but the LP's degenerate duals missed a contact: the touching pairs are used
+    (2, 7, 0.0, 0.12931708561560884, 2),
     # d = 4, N = 15-19: no particle is stable before the diameters reach half the box side;
     # they used to creep towards it for hundreds of LPs, now a "box too small" JammingError
     (4, 15, 0.0, 0.05811353092929003, 4),
