@@ -46,10 +46,13 @@ def run(kind: str, seed: int, std: float = 0.0) -> dict:
 
         jammed = calippso.jam(packing)
         record.update(phi_jam=float(jammed.phi), isostatic=bool(jammed.isostatic))
-        if kind == "ls":
-            jammed_start = calippso.jam(start)
+        if kind in ("ls", "fb"):
+            # the FB start is loose (phi ~ 0.61): the LP loop alone crawls, so compress it first
+            options = {"precompress_pressure": 1e5} if kind == "fb" else {}
+            jammed_start = calippso.jam(start, **options)
             record.update(phi_jam_of_start=float(jammed_start.phi),
-                          isostatic_start=bool(jammed_start.isostatic))
+                          isostatic_start=bool(jammed_start.isostatic), **{
+                              f"jam_of_start_{key}": value for key, value in options.items()})
     except Exception as error:  # the jamming core is optional here
         record["jam_error"] = f"{type(error).__name__}: {error}"
     return record
