@@ -31,6 +31,27 @@ def make_start(kind: str, seed: int, diameters: np.ndarray):
                                              seed=seed).packing
 
 
+def jam_of_start(kind: str, start) -> dict:
+    """`calippso.jam` of the start itself, beside the MLS result of the same start.
+
+    LS starts are jammed as they are. FB starts (φ ≈ 0.61) are loose: the LP loop alone
+    crawls, so they are compressed first (`precompress_pressure=1e5`). Poisson starts overlap:
+    their diameters are first scaled down by one factor until the closest pair has a gap of
+    1e-9 σ (what LS and MLS do with overlapping input), then compressed the same way.
+    """
+    import calippso
+
+    options = {} if kind == "ls" else {"precompress_pressure": 1e5}
+    gap, _ = min_gap(start.positions, start.diameters, start.box)
+    if gap < 0:
+        start = calippso.Packing(start.positions, start.diameters * (1 + gap) * (1 - 1e-9),
+                                 start.box)
+    jammed = calippso.jam(start, **options)
+    return {"phi_jam_of_start": float(jammed.phi), "isostatic_start": bool(jammed.isostatic),
+            "lps_of_start": jammed.iterations, "wall_time_jam_of_start": jammed.wall_time,
+            **{f"jam_of_start_{key}": value for key, value in options.items()}}
+
+
 def run(kind: str, seed: int, std: float = 0.0) -> dict:
     diameters = dist.lognormal(N, std, seed=seed) if std else dist.monodisperse(N)
     start = make_start(kind, seed, diameters)
@@ -46,13 +67,7 @@ def run(kind: str, seed: int, std: float = 0.0) -> dict:
 
         jammed = calippso.jam(packing)
         record.update(phi_jam=float(jammed.phi), isostatic=bool(jammed.isostatic))
-        if kind in ("ls", "fb"):
-            # the FB start is loose (phi ~ 0.61): the LP loop alone crawls, so compress it first
-            options = {"precompress_pressure": 1e5} if kind == "fb" else {}
-            jammed_start = calippso.jam(start, **options)
-            record.update(phi_jam_of_start=float(jammed_start.phi),
-                          isostatic_start=bool(jammed_start.isostatic), **{
-                              f"jam_of_start_{key}": value for key, value in options.items()})
+        record.update(jam_of_start(kind, start))
     except Exception as error:  # the jamming core is optional here
         record["jam_error"] = f"{type(error).__name__}: {error}"
     return record
