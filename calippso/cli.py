@@ -67,7 +67,8 @@ def _json_default(value):
 
 @contextlib.contextmanager
 def stdout_to_stderr() -> Iterator[None]:
-    """Send everything written to file descriptor 1 (e.g. a solver's banner) to stderr.
+    """Send everything written to file descriptor 1 (verbose output of a solver or library)
+    to stderr.
 
     Keeps stdout for the command's own summary, so ``--json`` output stays parseable.
     """
