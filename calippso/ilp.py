@@ -690,9 +690,9 @@ class _Jammer:
         leaving the others, and particles, looking like non-contacts and rattlers. When the LP
         network is hypostatic or has no stable particle, and the pairs that touch
         (h < `GEOMETRIC_CONTACT_GAP`) give a network with more stable particles (or as many,
-        and more contacts), the touching network is used instead, with the self-stress nearest to uniform forces (sparse least
-        squares), if that self-stress is positive and balanced. Otherwise the LP network is
-        kept.
+        and more contacts), the touching network is used instead, with the positive
+        self-stress near uniform forces that `positive_self_stress` finds, if there is one
+        and it balances. Otherwise the LP network is kept.
         """
         n_stable_lp = int(self.n - network.rattlers.sum())
         lp_gap = isostaticity_gap(network.i.shape[0], n_stable_lp, self.d)
