@@ -1,10 +1,15 @@
 """One CALiPPSO LP, many solvers: prints the time of each on the same rows.
 
 The LP is the one `calippso.jam` builds at LP number --lp of the run from our LS input
-(d = 3, N = --n, reduced pressure 1e5, seed 1), in the middle of the approach to jamming.
-Run from the repository root:
+(d = 3, N = --n, reduced pressure 1e5, seed 1), in the middle of the approach to jamming,
+or from any packing file given with --input. Run from the repository root:
 
     python bench/lp_solvers.py                 # N = 1024, LP 10
+    python bench/lp_solvers.py --input ../shared/data/mono_N10000_fba1e-3_then_ls1e-2_seed21 \
+        --lp 0 --only "IPM + crossover" "Clarabel (faer)" --log    # first LP at N = 10^4
+
+--log prints HiGHS's own log (IPX's factorisation times); --morton renumbers the particles
+along a Morton curve first.
 
 Columns: solver and options, seconds, status, optimum γ, simplex and interior-point
 iterations (HiGHS), or interior-point iterations and seconds per iteration (Clarabel).
@@ -39,12 +44,31 @@ HIGHS_VARIANTS = {
 }
 
 
-def capture_lp(n: int, index: int) -> LinearProgram:
-    """The LP number `index` (0-based) of `jam` on our LS input."""
+def ls_input(n: int) -> calippso.Packing:
+    """Our LS input: d = 3, N = n, reduced pressure 1e5, seed 1."""
     import generators
 
-    start = generators.lubachevsky_stillinger(generators.diameters.monodisperse(n), d=3,
-                                              target_pressure=1e5, seed=1).packing
+    return generators.lubachevsky_stillinger(generators.diameters.monodisperse(n), d=3,
+                                             target_pressure=1e5, seed=1).packing
+
+
+def morton_order(packing: calippso.Packing) -> np.ndarray:
+    """Particle order along a Morton (Z-order) curve of 2^10 cells per box side."""
+    cells = np.floor(packing.wrapped().positions / packing.box * 1024).astype(np.int64)
+    cells = cells.clip(0, 1023)
+    code = np.zeros(packing.n, dtype=np.int64)
+    for bit in range(10):
+        for axis in range(packing.d):
+            code |= ((cells[:, axis] >> bit) & 1) << (packing.d * bit + axis)
+    return np.argsort(code, kind="stable")
+
+
+class _Captured(Exception):
+    """Raised inside `jam` once the wanted LP is built, so that it is not solved there."""
+
+
+def capture_lp(start: calippso.Packing, index: int) -> LinearProgram:
+    """The LP number `index` (0-based) of `jam` on `start` (LPs before it are solved)."""
     captured: list[LinearProgram] = []
     real = calippso.ilp.get_solver
 
@@ -53,20 +77,25 @@ def capture_lp(n: int, index: int) -> LinearProgram:
 
         def wrapper(lp, settings, warm_start=None):
             captured.append(lp)
+            if len(captured) > index:
+                raise _Captured
             return solve(lp, settings, warm_start=warm_start)
         return wrapper
 
     calippso.ilp.get_solver = recording
     try:
-        calippso.jam(start, max_iters=index + 1, newton=False)
+        calippso.jam(start, max_iters=index + 1, newton=False, fallback_solvers=())
+    except _Captured:
+        pass
     finally:
         calippso.ilp.get_solver = real
     return captured[index]
 
 
-def time_highs(lp: LinearProgram, options: dict) -> tuple[float, str, float, str]:
+def time_highs(lp: LinearProgram, options: dict,
+               log: bool = False) -> tuple[float, str, float, str]:
     highs = highspy.Highs()
-    highs.setOptionValue("output_flag", False)
+    highs.setOptionValue("output_flag", log)
     for key, value in {**TOLERANCES, **options}.items():
         highs.setOptionValue(key, value)
     highs.passModel(_model(lp))
@@ -105,16 +134,33 @@ def time_clarabel(lp: LinearProgram, method: str,
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=1024)
+    parser.add_argument("--input", help="a packing file (calippso.read) instead of our LS input")
     parser.add_argument("--lp", type=int, default=10, help="which LP of the run (0-based)")
+    parser.add_argument("--only", nargs="+", metavar="NAME",
+                        help="run only the solvers whose name contains one of these strings")
+    parser.add_argument("--log", action="store_true", help="print HiGHS's log")
+    parser.add_argument("--morton", action="store_true",
+                        help="renumber the particles along a Morton curve first")
     args = parser.parse_args()
 
-    lp = capture_lp(args.n, args.lp)
-    print(f"LP {args.lp} of the N = {args.n}, d = 3 LS run: {lp.n_rows} rows, {lp.n_cols} "
-          f"columns, {lp.matrix.nnz} non-zeros")
+    start = calippso.read(args.input) if args.input else ls_input(args.n)
+    if args.morton:
+        order = morton_order(start)
+        start = calippso.Packing(start.positions[order], start.diameters[order], start.box)
+    lp = capture_lp(start, args.lp)
+    print(f"LP {args.lp} of the N = {start.n}, d = {start.d} run: {lp.n_rows} rows, "
+          f"{lp.n_cols} columns, {lp.matrix.nnz} non-zeros")
+    variants = {name: (lambda options=options: time_highs(lp, options, args.log))
+                for name, options in HIGHS_VARIANTS.items()}
+    for method in ("faer", "qdldl"):
+        variants[f"Clarabel ({method})"] = lambda method=method: time_clarabel(lp, method)
+    variants["Clarabel (faer), no γ column"] = lambda: time_clarabel(lp, "faer",
+                                                                     without_gamma=True)
+    if args.only:
+        variants = {name: run for name, run in variants.items()
+                    if any(part in name for part in args.only)}
     print(f"{'solver':<28} {'seconds':>8} {'status':>10} {'gamma':>14}  iterations")
-    rows = [(name, time_highs(lp, options)) for name, options in HIGHS_VARIANTS.items()]
-    rows += [(f"Clarabel ({method})", time_clarabel(lp, method)) for method in ("faer", "qdldl")]
-    rows.append(("Clarabel (faer), no γ column", time_clarabel(lp, "faer", without_gamma=True)))
+    rows = [(name, run()) for name, run in variants.items()]
     for name, (seconds, status, gamma, iterations) in rows:
         print(f"{name:<28} {seconds:>8.2f} {status:>10} {gamma:>14.6e}  {iterations}",
               flush=True)
