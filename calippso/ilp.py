@@ -31,6 +31,7 @@ from .neighbors import NeighborSearch, Pairs
 from .newton import refine_isostatic
 from .packing import Packing, wrap
 from .precompress import precompress, precompress_checkpoint
+from .rattlers import separate_rattlers
 from .result import JammingResult, history_from_records
 from .settings import JamSettings
 from .solvers import Basis, LPSolution, get_solver
@@ -53,6 +54,10 @@ STALL_LPS = 25
 #: Pairs closer than this relative gap count as touching when the LP duals are degenerate
 #: (`_Jammer._hyperstatic_network`).
 GEOMETRIC_CONTACT_GAP = 1e-11
+#: A displacement at the bound limits Γ when its reduced cost |(Aᵀμ)_k| exceeds this fraction
+#: of the largest dual (far above the solver's dual feasibility tolerance, far below the
+#: reduced cost of a particle that the bound really holds back).
+BINDING_REDUCED_COST = 1e-6
 
 
 def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: float = 1e-12,
@@ -179,8 +184,11 @@ def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
 def next_step_bound(step: float, taken: "_Step", settings: JamSettings) -> float:
     """Adapt the displacement bound to the step just taken.
 
-    - A stable particle held at the bound means the bound limited the step: multiply it by
-      `step_growth`.
+    - The bound limited Γ (a displacement at the bound has a non-zero reduced cost, see
+      `_Step.held_by_bound`), or a stable particle sits at the bound: multiply it by
+      `step_growth`. The first case covers particles with d or fewer contacts, which count
+      as rattlers but can be pressed against the bound by their neighbours; ignoring them
+      made the loop shrink the bound with the stable particles' steps and stall there.
     - Far from jamming (fewer than half the particles stable) the contact network is a set of
       small clusters that all count as rattlers; if any particle with a contact sat at the
       bound, grow the bound too, otherwise keep it.
@@ -192,7 +200,8 @@ def next_step_bound(step: float, taken: "_Step", settings: JamSettings) -> float
         return displacement >= step * (1.0 - 1e-6)
 
     sparse_network = taken.stable_fraction < 0.5
-    if at_bound(taken.max_displacement) or (sparse_network and at_bound(taken.max_contacting)):
+    if (taken.held_by_bound or at_bound(taken.max_displacement)
+            or (sparse_network and at_bound(taken.max_contacting))):
         proposed = step * settings.step_growth
     elif sparse_network:
         proposed = step
@@ -214,6 +223,7 @@ class _Step:
     max_displacement: float        # over non-rattlers, mean diameters
     max_contacting: float          # over particles with at least one contact (before removal)
     stable_fraction: float         # fraction of particles that are not rattlers
+    held_by_bound: bool            # relaxing the bound would increase Γ
     offered_warm_start: bool = False   # the LP was given the previous LP's basis
 
     @property
@@ -251,6 +261,27 @@ class _Network:
     normalization: float
     solver: str
     from_lp: bool
+
+
+def _held_by_bound(lp: LinearProgram, solution: LPSolution) -> bool:
+    """Whether the bound on the displacements limited Γ in this LP.
+
+    At the optimum, a displacement s_k strictly inside its bound has a zero reduced cost
+    (Aᵀμ)_k: the forces on that particle balance along k. A non-zero one at the bound is the
+    bound's own multiplier, the rate at which Γ would grow if the bound were relaxed.
+    """
+    if solution.duals.size == 0:
+        return False
+    largest = float(solution.duals.max())
+    if largest <= 0:
+        return False
+    s = solution.x[:-1]
+    free = lp.col_upper[:-1] > 0
+    at_bound = free & (np.abs(s) >= lp.step_bound * (1.0 - 1e-6))
+    if not at_bound.any():
+        return False
+    reduced = (lp.matrix.T @ solution.duals)[:-1]
+    return bool(np.any(np.abs(reduced[at_bound]) > BINDING_REDUCED_COST * largest))
 
 
 def _solution_problem(lp: LinearProgram, solution: LPSolution) -> str | None:
@@ -428,7 +459,8 @@ class _Jammer:
         max_displacement = (float(np.abs(s[~rattlers & free]).max(initial=0.0))
                             if (~rattlers).any() else max_contacting)
         return _Step(lp, solution, rows, rattlers, forces, balance, max_displacement,
-                     max_contacting, float(np.count_nonzero(~rattlers)) / self.n)
+                     max_contacting, float(np.count_nonzero(~rattlers)) / self.n,
+                     _held_by_bound(lp, solution))
 
     def _record(self, step: _Step, min_gap: float, stage: str = "lp") -> dict:
         record = {
@@ -497,7 +529,8 @@ class _Jammer:
             network = step_result.network()
             converged = (record["sqrt_gamma_minus_1"] < settings.tol_gamma
                          and step_result.max_displacement < settings.tol_s
-                         and step_result.max_displacement < 0.5 * bound)
+                         and step_result.max_displacement < 0.5 * bound
+                         and not step_result.held_by_bound)
             if verifying:
                 verifying = False
                 if converged:
@@ -583,7 +616,8 @@ class _Jammer:
         """Solve the contact equations of an isostatic network; None unless certified.
 
         Certified means: every force positive and no other pair overlapping beyond
-        `NEWTON_OVERLAP_TOLERANCE` (see `calippso.newton`). A network that failed once is not
+        `NEWTON_OVERLAP_TOLERANCE` (see `calippso.newton`). Rattlers that the moved cages
+        now overlap are first moved out of the way (`calippso.rattlers.separate_rattlers`). A network that failed once is not
         tried again, unless `retry` (at the end of the loop, from the converged positions).
         On success the configuration moves to the certified jamming point and a history
         record (stage "newton") is added.
@@ -598,16 +632,22 @@ class _Jammer:
         if refined is None:
             self.failed_networks.add(key)
             return None
-        search = NeighborSearch(refined.positions, refined.diameters, self.box)
-        close = search.pairs_within(float(refined.diameters.max()) * (1.0 + 1e-6))
-        is_contact = np.isin(close.i * self.n + close.j, order)
-        others = close.gaps[~is_contact]
-        overlapping = others.size and others.min() < -NEWTON_OVERLAP_TOLERANCE
-        if overlapping or not refined.positive:
+        positions = refined.positions
+        search, close, overlapping = self._overlaps_outside(positions, refined.diameters,
+                                                            order)
+        if refined.positive and overlapping.any() and np.all(
+                network.rattlers[close.i[overlapping]] | network.rattlers[close.j[overlapping]]):
+            # only rattlers overlap: the cage moved under a rattler that touched it
+            separated = separate_rattlers(positions, refined.diameters, self.box,
+                                          network.rattlers)
+            if separated is not None:
+                positions = separated
+                search, close, overlapping = self._overlaps_outside(
+                    positions, refined.diameters, order)
+        if overlapping.any() or not refined.positive:
             self.failed_networks.add(key)
             return None
-        self.positions, self.diameters, self.search = (refined.positions, refined.diameters,
-                                                       search)
+        self.positions, self.diameters, self.search = (positions, refined.diameters, search)
         current = search.pairs_of(network.i, network.j)
         balance = force_balance(self.n, current.i, current.j,
                                 current.vectors / current.distances[:, None], refined.forces,
@@ -636,6 +676,16 @@ class _Jammer:
                           f"overlap")
         return _Network(network.i, network.j, refined.forces, network.rattlers,
                         float(refined.forces @ weights), network.solver, from_lp=False)
+
+    def _overlaps_outside(self, positions: np.ndarray, diameters: np.ndarray,
+                          contact_keys: np.ndarray) -> tuple[NeighborSearch, Pairs, np.ndarray]:
+        """The neighbour search of a configuration, its close pairs, and which of those
+        overlap beyond `NEWTON_OVERLAP_TOLERANCE` without being a contact (sorted keys
+        i N + j)."""
+        search = NeighborSearch(positions, diameters, self.box)
+        close = search.pairs_within(float(diameters.max()) * (1.0 + 1e-6))
+        is_contact = np.isin(close.i * self.n + close.j, contact_keys)
+        return search, close, ~is_contact & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
 
     # ----------------------------------------------------------------- final forces
     def _finish(self, network: _Network, converged: bool, stopped: bool) -> JammingResult:
@@ -749,7 +799,8 @@ class _Jammer:
             self.records[-1]["min_gap"] = float(after.min()) if after.size else float("inf")
 
     def _status(self, converged: bool, stopped: bool, gap: int) -> str:
-        last = self.records[-1]
+        # the loop's last step, not the force clean-up LP (whose step is never taken)
+        last = [record for record in self.records if record["stage"] != "cleanup"][-1]
         if converged:
             head = f"Jammed: converged after {self.lps_solved} LPs"
         elif stopped:
@@ -765,8 +816,15 @@ class _Jammer:
             tail = "isostatic"
         else:
             tail = f"{'hyperstatic' if gap > 0 else 'hypostatic'} (isostaticity gap {gap:+d})"
-        sentence = (f"{head} (sqrt(Gamma)-1 = {last['sqrt_gamma_minus_1']:.1e}, "
-                    f"max|s| = {last['max_displacement']:.1e}); {tail}.")
+        if last["stage"] == "newton":
+            # the Newton stage's own move: the certificate, not the tolerances, ends the run
+            last_step = (f"the Newton stage moved stable particles by up to "
+                         f"{last['max_displacement']:.1e} and grew the diameters by "
+                         f"sqrt(Gamma)-1 = {last['sqrt_gamma_minus_1']:.1e}")
+        else:
+            last_step = (f"sqrt(Gamma)-1 = {last['sqrt_gamma_minus_1']:.1e}, "
+                         f"max|s| = {last['max_displacement']:.1e}")
+        sentence = f"{head} ({last_step}); {tail}."
         notes = self.notes + ([f"{self.retried_lps} LPs in all needed a retry"]
                               if self.retried_lps > 1 else [])
         if notes:

@@ -84,3 +84,19 @@ def test_ls_p1e12_in_high_dimension(d, n):
     result = jam(start)
     assert_jammed(result)
     assert result.phi >= start.phi
+
+
+def test_ls_state_whose_bound_held_particles_back():
+    """LS at p = 1e5 from Poisson points (N = 1000, seed 3; the generator validation's
+    hardest start). The loop once ran 1000 LPs on it without converging: particles with d
+    or fewer contacts were pressed against the bound while the bound shrank with the stable
+    particles' steps. Measured since the bound grows when it limits Gamma: 53 LPs."""
+    import generators
+
+    points = generators.poisson(generators.diameters.monodisperse(1000), 3, phi=0.3, seed=3)
+    gap, _ = min_gap(points.positions, points.diameters, points.box)
+    start = calippso.Packing(points.positions, points.diameters * (1 + gap) * (1 - 1e-9),
+                             points.box)
+    result = jam(start, precompress_pressure=1e5, max_iters=200)
+    assert_jammed(result)
+    assert 0.64 < result.phi < 0.647
