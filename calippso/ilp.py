@@ -184,27 +184,28 @@ def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
 def next_step_bound(step: float, taken: "_Step", settings: JamSettings) -> float:
     """Adapt the displacement bound to the step just taken.
 
-    - The bound limited Γ (a displacement at the bound has a non-zero reduced cost, see
-      `_Step.held_by_bound`), or a stable particle sits at the bound: multiply it by
-      `step_growth`. The first case covers particles with d or fewer contacts, which count
-      as rattlers but can be pressed against the bound by their neighbours; ignoring them
-      made the loop shrink the bound with the stable particles' steps and stall there.
+    - A stable particle held at the bound means the bound limited the step: multiply it by
+      `step_growth`.
     - Far from jamming (fewer than half the particles stable) the contact network is a set of
       small clusters that all count as rattlers; if any particle with a contact sat at the
       bound, grow the bound too, otherwise keep it.
     - Otherwise the next bound is `step_margin` × the largest displacement of a stable
       particle, so that it follows the shrinking steps of the final approach (and the LP
-      keeps fewer rows).
+      keeps fewer rows), but it does not shrink while it limits Γ (`_Step.held_by_bound`):
+      particles with d or fewer contacts count as rattlers, yet their neighbours can press
+      them against the bound. Shrinking the bound with the stable particles' steps then
+      stalled the loop at the smallest bound.
     """
     def at_bound(displacement: float) -> bool:
         return displacement >= step * (1.0 - 1e-6)
 
     sparse_network = taken.stable_fraction < 0.5
-    if (taken.held_by_bound or at_bound(taken.max_displacement)
-            or (sparse_network and at_bound(taken.max_contacting))):
+    if at_bound(taken.max_displacement) or (sparse_network and at_bound(taken.max_contacting)):
         proposed = step * settings.step_growth
     elif sparse_network:
         proposed = step
+    elif taken.held_by_bound:
+        proposed = max(step, settings.step_margin * taken.max_displacement)
     else:
         proposed = settings.step_margin * taken.max_displacement
     return float(np.clip(proposed, settings.min_step, settings.max_step))

@@ -1,4 +1,4 @@
-"""The adaptive bound on displacements: when the bound limits Γ, it must grow."""
+"""The adaptive bound on displacements: while the bound limits Γ, it must not shrink."""
 
 from __future__ import annotations
 
@@ -48,11 +48,13 @@ def _step(held: bool, max_displacement: float, stable_fraction: float = 0.95) ->
                  stable_fraction=stable_fraction, held_by_bound=held)
 
 
-def test_bound_grows_when_it_holds_a_particle_back():
+def test_bound_does_not_shrink_while_it_holds_a_particle_back():
     settings = JamSettings()
     # the stable particles moved little, but a particle with d or fewer contacts was held:
     # shrinking the bound with the stable steps would stall the loop
-    grown = next_step_bound(1e-4, _step(held=True, max_displacement=1e-6), settings)
+    kept = next_step_bound(1e-4, _step(held=True, max_displacement=1e-6), settings)
+    assert kept == pytest.approx(1e-4)
+    grown = next_step_bound(1e-4, _step(held=True, max_displacement=1e-4), settings)
     assert grown == pytest.approx(1e-4 * settings.step_growth)
     followed = next_step_bound(1e-4, _step(held=False, max_displacement=1e-6), settings)
     assert followed == pytest.approx(1e-6 * settings.step_margin)
