@@ -88,9 +88,9 @@ def test_ls_p1e12_in_high_dimension(d, n):
 
 def test_ls_state_whose_bound_held_particles_back():
     """LS at p = 1e5 from Poisson points (N = 1000, seed 3; the generator validation's
-    hardest start). The loop once ran 1000 LPs on it without converging: particles with d
-    or fewer contacts were pressed against the bound while the bound shrank with the stable
-    particles' steps. Measured since the bound grows when it limits Gamma: 53 LPs."""
+    hardest start). The loop once ran 1000 LPs on it without converging, and with
+    step_margin=2 stalled at the smallest bound, where spheres with d or fewer contacts were
+    pressed against it. Measured since the bound is kept while it limits Gamma: 52 LPs."""
     import generators
 
     points = generators.poisson(generators.diameters.monodisperse(1000), 3, phi=0.3, seed=3)
