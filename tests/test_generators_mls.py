@@ -49,3 +49,42 @@ def test_mls_max_collisions_and_errors():
         generators.closest_jamming(start, rate_decrease=1.0)
     with pytest.raises(ValueError, match="packing"):
         generators.closest_jamming(np.ones(10))
+
+
+@pytest.fixture(scope="module")
+def levelled_off():
+    # a threshold the pressure (almost) never reaches: the rates end after
+    # max_windows_per_rate windows, the final one included
+    start = generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=1)
+    return generators.closest_jamming(start, max_pressure=1e300, final_rate=1e-2,
+                                      max_windows_per_rate=3, seed=1)
+
+
+def test_mls_lowers_the_rate_when_the_pressure_levels_off(levelled_off):
+    assert levelled_off.status.startswith("levelled off: p stayed below 1e+300 for 3 windows")
+    rates = levelled_off.history["rate"]
+    growth = rates[rates > 0]
+    values, counts = np.unique(growth, return_counts=True)
+    assert counts.max() == 3 and values.max() == 10.0  # at most 3 growth windows per rate
+    assert values.min() == 1e-2 and counts[0] == 3 and growth[-1] == 1e-2
+    packing = levelled_off.packing
+    gap, overlapping = min_gap(packing.positions, packing.diameters, packing.box)
+    assert overlapping == 0
+
+
+def test_mls_levelled_off_run_resumes_as_finished(levelled_off, tmp_path):
+    start = generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=1)
+    options = dict(max_pressure=1e300, final_rate=1e-2, max_windows_per_rate=3, seed=1,
+                   checkpoint=tmp_path / "mls.npz")
+    first = generators.closest_jamming(start, **options)
+    again = generators.closest_jamming(start, **options)
+    assert again.status == first.status == levelled_off.status
+    assert again.collisions == first.collisions
+    np.testing.assert_array_equal(again.packing.positions, first.packing.positions)
+
+
+@pytest.mark.parametrize("bad", [0, -5, 2.5, True])
+def test_mls_max_windows_per_rate_must_be_a_positive_integer(bad):
+    start = generators.poisson(dist.monodisperse(64), 3, phi=0.2, seed=0)
+    with pytest.raises(ValueError, match="max_windows_per_rate must be a positive integer"):
+        generators.closest_jamming(start, max_windows_per_rate=bad)
