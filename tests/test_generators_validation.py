@@ -79,7 +79,9 @@ def run(kind: str, seed: int, std: float = 0.0) -> dict:
 def test_closest_jamming_density_monodisperse(kind, seed):
     record = run(kind, seed)
     assert record["overlapping_pairs"] == 0
-    assert record["status"].startswith("jammed")
+    assert record["status"].startswith(("jammed", "levelled off"))
+    if record["status"].startswith("levelled off"):
+        assert record["isostatic"]   # the LP certifies the packing the protocol left
     assert 0.628 < record["phi_mls"] < 0.647
 
 
