@@ -618,8 +618,9 @@ class _Jammer:
 
         Certified means: every force positive and no other pair overlapping beyond
         `NEWTON_OVERLAP_TOLERANCE` (see `calippso.newton`). Rattlers that the moved cages
-        now overlap are first moved out of the way (`calippso.rattlers.separate_rattlers`). A network that failed once is not
-        tried again, unless `retry` (at the end of the loop, from the converged positions).
+        now overlap are first moved out of the way (`calippso.rattlers.separate_rattlers`).
+        A network that failed once is not tried again, unless `retry` (at the end of the
+        loop, from the converged positions).
         On success the configuration moves to the certified jamming point and a history
         record (stage "newton") is added.
         """

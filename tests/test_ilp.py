@@ -140,6 +140,23 @@ def test_callback_can_stop_the_run():
     assert overlap_free(result.packing) >= -1e-12
 
 
+def test_status_quotes_the_last_step_not_the_cleanup_lp():
+    start = random_sequential_addition(64, 3, 0.3, seed=5)
+    result = jam(start, callback=lambda info: info["iteration"] >= 5)
+    history = result.history
+    assert history["stage"][-1] == "cleanup"   # forces of a stopped run come from a clean-up LP
+    last_lp = np.flatnonzero(history["stage"] == "lp")[-1]
+    assert f"sqrt(Gamma)-1 = {history['sqrt_gamma_minus_1'][last_lp]:.1e}" in result.status
+    assert f"max|s| = {history['max_displacement'][last_lp]:.1e}" in result.status
+
+
+def test_status_of_a_run_ended_by_newton():
+    result = jam(random_sequential_addition(64, 3, 0.3, seed=5))
+    assert result.converged and result.history["stage"][-1] == "newton"
+    moved = result.history["max_displacement"][-1]
+    assert f"the Newton stage moved stable particles by up to {moved:.1e}" in result.status
+
+
 def test_verbose_prints_a_table(capsys):
     start = random_sequential_addition(32, 2, 0.4, seed=1, diameters=bidisperse(32))
     result = jam(start, verbose=True)
