@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -58,3 +60,21 @@ def test_bound_does_not_shrink_while_it_holds_a_particle_back():
     assert grown == pytest.approx(1e-4 * settings.step_growth)
     followed = next_step_bound(1e-4, _step(held=False, max_displacement=1e-6), settings)
     assert followed == pytest.approx(1e-6 * settings.step_margin)
+
+
+def test_hypostatic_warm_vertex_is_resolved_cold_unless_the_bound_holds_it():
+    # the pair pressed against the bound: both discs have one contact, so the network is
+    # hypostatic (no stable particle), and the bound limits Γ
+    lp, solution = _solved_lp([[1.0, 1.0], [2.0, 1.0]], [1.0, 1.0], [10.0, 10.0], 1e-3)
+    warm = replace(solution, warm_started=True)
+
+    def step(solution, held):
+        return _Step(lp=lp, solution=solution, contact_rows=np.zeros(1, dtype=np.int64),
+                     rattlers=np.ones(2, dtype=bool), forces=np.ones(1), balance=0.0,
+                     max_displacement=0.0, max_contacting=1e-3, stable_fraction=0.0,
+                     held_by_bound=held)
+
+    assert step(warm, held=True).hypostatic
+    assert not step(warm, held=True).needs_cold_resolve      # the bound stands in
+    assert step(warm, held=False).needs_cold_resolve         # degenerate vertex: go cold
+    assert not step(solution, held=False).needs_cold_resolve  # already cold
