@@ -181,6 +181,11 @@ def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
     return float(np.clip(step, settings.min_step, settings.max_step))
 
 
+def _at_bound(displacement, bound: float):
+    """Whether a displacement (float or array) equals the bound, up to the solver's round-off."""
+    return displacement >= bound * (1.0 - 1e-6)
+
+
 def next_step_bound(step: float, taken: "_Step", settings: JamSettings) -> float:
     """Adapt the displacement bound to the step just taken.
 
@@ -196,11 +201,9 @@ def next_step_bound(step: float, taken: "_Step", settings: JamSettings) -> float
       them against the bound. Shrinking the bound with the stable particles' steps then
       stalled the loop at the smallest bound.
     """
-    def at_bound(displacement: float) -> bool:
-        return displacement >= step * (1.0 - 1e-6)
-
     sparse_network = taken.stable_fraction < 0.5
-    if at_bound(taken.max_displacement) or (sparse_network and at_bound(taken.max_contacting)):
+    if (_at_bound(taken.max_displacement, step)
+            or (sparse_network and _at_bound(taken.max_contacting, step))):
         proposed = step * settings.step_growth
     elif sparse_network:
         proposed = step
@@ -290,7 +293,7 @@ def _held_by_bound(lp: LinearProgram, solution: LPSolution) -> bool:
         return False
     s = solution.x[:-1]
     free = lp.col_upper[:-1] > 0
-    at_bound = free & (np.abs(s) >= lp.step_bound * (1.0 - 1e-6))
+    at_bound = free & _at_bound(np.abs(s), lp.step_bound)
     if not at_bound.any():
         return False
     reduced = (lp.matrix.T @ solution.duals)[:-1]

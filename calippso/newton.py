@@ -43,6 +43,9 @@ RESIDUAL_TOLERANCE = 1e-12
 #: Newton gives up when a correction exceeds this (mean diameters): the start was too far.
 MAX_CORRECTION = 0.05
 MAX_ITERATIONS = 30
+#: Smallest force, relative to the largest, that certifies a contact (the LP's own contact
+#: threshold on the duals, `JamSettings.contact_threshold`, has the same value).
+MIN_FORCE_RATIO = 1e-10
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,8 +81,12 @@ class Refinement:
 
     @property
     def positive(self) -> bool:
-        """Every contact force is positive: the network is the jammed one."""
-        return bool(self.forces.min(initial=np.inf) > 0)
+        """Every contact force is positive, above `MIN_FORCE_RATIO` × the largest: the network
+        is the jammed one. A force at round-off level is a zero force (a contact that could
+        open at no cost), not a certificate."""
+        if self.forces.size == 0:
+            return True
+        return bool(self.forces.min() > MIN_FORCE_RATIO * self.forces.max())
 
 
 def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_col: np.ndarray,

@@ -77,3 +77,20 @@ def test_an_lp_at_the_newton_solution_confirms_it(jammed):
     assert lp_rows["sqrt_gamma_minus_1"][-1] < 1e-12
     assert lp_rows["max_displacement"][-1] < 1e-9
 
+
+
+def test_a_round_off_force_does_not_certify():
+    """A force at round-off level, relative to the largest, is a contact that could open at
+    no cost: the network is not certified by it (the loose BCC lattice ended in such a
+    network, with one force 1e-13 of the mean, before this rule)."""
+    from dataclasses import replace
+
+    from calippso.newton import MIN_FORCE_RATIO, Refinement
+
+    refinement = Refinement(positions=np.zeros((3, 2)), diameters=np.ones(3),
+                            forces=np.array([1.0, 0.5, 2.0]), iterations=1,
+                            sqrt_gamma_minus_1=0.0, max_displacement=0.0, residual=0.0)
+    assert refinement.positive
+    assert not replace(refinement, forces=np.array([1.0, 4e-16, 2.0])).positive
+    assert not replace(refinement, forces=np.array([1.0, -1e-3, 2.0])).positive
+    assert replace(refinement, forces=np.array([1.0, 3 * MIN_FORCE_RATIO, 2.0])).positive
