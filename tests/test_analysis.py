@@ -272,6 +272,6 @@ def test_analyze_one_packing(jammed):
     assert summary["bucklers"] == int(bucklers(jammed).sum())
     assert summary["localized_forces"] + summary["extended_forces"] == jammed.n_contacts
     assert set(summary["exponents"]) | set(summary["exponent_errors"]) == {
-        "gamma", "theta_e", "theta_l"}
+        "gamma", "theta_e", "theta_l", "theta"}
     for e in analysis.exponents.values():
         assert e.interval[0] <= e.value <= e.interval[1]

@@ -42,7 +42,7 @@ def test_report_of_one_run(jammed_2d, tmp_path):
     assert summary["isostatic_packings"] == int(result.isostatic)
     assert summary["runs"][0]["iterations"] == result.iterations
     assert set(summary["exponents"]) | set(summary["exponent_errors"]) == {
-        "gamma", "theta_e", "theta_l"}
+        "gamma", "theta_e", "theta_l", "theta"}
     page = path.read_text()
     images = _images(page)
     assert {"forces.png", "gaps.png", "contact_numbers.png", "history/run_0.png"} == set(images)

@@ -1,4 +1,4 @@
-"""Critical exponents γ, θ_e, θ_ℓ from pooled gaps and forces, with their reference values.
+"""Critical exponents γ, θ_e, θ_ℓ and θ from pooled gaps and forces, with reference values.
 
 Each exponent comes from a power-law fit of a cumulative (`calippso.analysis.fits`):
 
@@ -8,7 +8,13 @@ name     distribution                cumulative           exponent         refer
 gamma    g(h) ~ h^−γ (gaps)          Z(h) − z ~ h^(1−γ)   γ = 1 − slope    0.41269
 theta_e  P_e(f) ~ f^θ_e (extended)   G_e(f) ~ f^(1+θ_e)   θ_e = slope − 1  0.42311
 theta_l  P_ℓ(f) ~ f^θ_ℓ (localised)  G_ℓ(f) ~ f^(1+θ_ℓ)   θ_ℓ = slope − 1  0.17
+theta    P(f) ~ f^θ (all forces)     G(f) ~ f^(1+θ)       θ = slope − 1    0.17
 =======  ==========================  ===================  ===============  =========
+
+θ is the weak-force exponent of all contacts together, the one most papers report. At small
+f the two kinds add up, P(f) ≈ P_ℓ(f) + P_e(f), so θ = min(θ_ℓ, θ_e) = θ_ℓ asymptotically
+(Lerner, Düring & Wyart 2013): its reference is θ_ℓ. It does not depend on the localisation
+rule.
 
 Upper ends of the fit windows (`UPPER`): h ≤ 1e-2 for gaps, f ≤ 0.1 (mean force 1) for
 forces, chosen from the local slopes of the cumulatives of pooled d = 3 packings (N = 1024, LS
@@ -32,14 +38,14 @@ __all__ = ["REFERENCE_EXPONENTS", "UPPER", "SCAN_STEPS", "Exponent", "exponent_f
 
 #: Reference values (Charbonneau et al. 2014; θ_ℓ = 1 − 2γ from Lerner, Düring & Wyart 2013).
 REFERENCE_EXPONENTS: dict[str, float] = {"gamma": 0.41269, "theta_e": 0.42311,
-                                         "theta_l": 0.17}
+                                         "theta_l": 0.17, "theta": 0.17}
 #: Default upper end of each fit window (gap h, or force in units of the mean force).
-UPPER: dict[str, float] = {"gamma": 1e-2, "theta_e": 0.1, "theta_l": 0.1}
+UPPER: dict[str, float] = {"gamma": 1e-2, "theta_e": 0.1, "theta_l": 0.1, "theta": 0.1}
 #: Window tops tried by `window_scan`: UPPER[name] × 10^(k/4) for these k.
 SCAN_STEPS: tuple[int, ...] = (-8, -7, -6, -5, -4, -3, -2, -1, 0, 1, 2, 3, 4)
 #: exponent = offset + sign × slope of the cumulative.
 _FROM_SLOPE: dict[str, tuple[float, float]] = {"gamma": (1.0, -1.0), "theta_e": (-1.0, 1.0),
-                                               "theta_l": (-1.0, 1.0)}
+                                               "theta_l": (-1.0, 1.0), "theta": (-1.0, 1.0)}
 
 
 @dataclass(frozen=True)
@@ -49,7 +55,7 @@ class Exponent:
     Attributes
     ----------
     name : str
-        "gamma", "theta_e" or "theta_l".
+        "gamma", "theta_e", "theta_l" or "theta".
     value : float
     interval : tuple of float
         Bootstrap percentile interval (low, high).
@@ -85,7 +91,7 @@ def exponent_from_sample(name: str, sample: PooledSample, *, upper: float | None
 
     Parameters
     ----------
-    name : {"gamma", "theta_e", "theta_l"}
+    name : {"gamma", "theta_e", "theta_l", "theta"}
     sample : PooledSample
         Gaps (for "gamma") or forces normalised by the mean.
     upper : float, optional
@@ -108,7 +114,7 @@ def critical_exponents(results: JammingResult | Iterable[JammingResult], *,
                        max_gap: float = DEFAULT_MAX_GAP, rule: str = DEFAULT_RULE,
                        upper: dict[str, float] | None = None,
                        **fit_options) -> dict[str, Exponent]:
-    """γ, θ_e and θ_ℓ pooled over `results`.
+    """γ, θ_e, θ_ℓ and θ pooled over `results`.
 
     Parameters
     ----------
@@ -125,7 +131,7 @@ def critical_exponents(results: JammingResult | Iterable[JammingResult], *,
     Returns
     -------
     dict
-        {"gamma": Exponent, "theta_e": Exponent, "theta_l": Exponent}
+        {"gamma": Exponent, "theta_e": Exponent, "theta_l": Exponent, "theta": Exponent}
 
     Raises
     ------
@@ -135,7 +141,8 @@ def critical_exponents(results: JammingResult | Iterable[JammingResult], *,
     uppers = {**UPPER, **(upper or {})}
     samples = {"gamma": pooled_gaps(results, max_gap),
                "theta_e": pooled_forces(results, "extended", rule),
-               "theta_l": pooled_forces(results, "localized", rule)}
+               "theta_l": pooled_forces(results, "localized", rule),
+               "theta": pooled_forces(results, "all", rule)}
     return {name: exponent_from_sample(name, sample, upper=uppers[name], **fit_options)
             for name, sample in samples.items()}
 
@@ -150,7 +157,7 @@ def window_scan(name: str, sample: PooledSample, *, upper: float | None = None,
 
     Parameters
     ----------
-    name : {"gamma", "theta_e", "theta_l"}
+    name : {"gamma", "theta_e", "theta_l", "theta"}
     sample : PooledSample
     upper : float, optional
         The window top of the measurement (default `UPPER[name]`); tops

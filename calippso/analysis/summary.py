@@ -30,7 +30,7 @@ class Analysis:
     forces : dict of str to PooledSample
         "all", "extended" and "localized" forces, normalised by the mean of each packing.
     exponents : dict of str to Exponent
-        "gamma", "theta_e", "theta_l" (those that could be fitted).
+        "gamma", "theta_e", "theta_l", "theta" (those that could be fitted).
     exponent_errors : dict of str to str
         Why an exponent could not be fitted (e.g. too few small forces in one small packing).
     n_bucklers : int
@@ -117,7 +117,8 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
     uppers = {**UPPER, **(upper or {})}
     gaps = pooled_gaps(items, max_gap)
     forces = {kind: pooled_forces(items, kind, rule) for kind in ("all", "extended", "localized")}
-    samples = {"gamma": gaps, "theta_e": forces["extended"], "theta_l": forces["localized"]}
+    samples = {"gamma": gaps, "theta_e": forces["extended"], "theta_l": forces["localized"],
+               "theta": forces["all"]}
     exponents, errors, scans = {}, {}, {}
     scan_options = {k: v for k, v in fit_options.items() if k in ("min_count", "method")}
     for name, sample in samples.items():

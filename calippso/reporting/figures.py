@@ -58,7 +58,8 @@ def plot_forces(analysis: Analysis, path: Path) -> Path:
     for kind, (color, label) in styles.items():
         sample = analysis.forces[kind]
         _cumulative(ax, sample, color=color, lw=1.2, label=f"{label} ({len(sample)})")
-    for name, color, label in (("theta_e", "C0", "θ_e"), ("theta_l", "C3", "θ_ℓ")):
+    for name, color, label in (("theta", "0.4", "θ"), ("theta_e", "C0", "θ_e"),
+                               ("theta_l", "C3", "θ_ℓ")):
         if name in analysis.exponents:
             _fit_and_reference(ax, analysis.exponents[name], 1 + REFERENCE_EXPONENTS[name],
                                color, label)

@@ -8,7 +8,8 @@ __all__ = ["markdown"]
 
 _NAMES = {"gamma": ("γ", "gaps, Z(h) − z ~ h^(1−γ)"),
           "theta_e": ("θ_e", "extended forces, G_e(f) ~ f^(1+θ_e)"),
-          "theta_l": ("θ_ℓ", "localised forces, G_ℓ(f) ~ f^(1+θ_ℓ)")}
+          "theta_l": ("θ_ℓ", "localised forces, G_ℓ(f) ~ f^(1+θ_ℓ)"),
+          "theta": ("θ", "all forces, G(f) ~ f^(1+θ); theory: min(θ_ℓ, θ_e)")}
 
 
 def _fmt(value, digits: int = 4) -> str:
