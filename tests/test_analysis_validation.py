@@ -8,8 +8,9 @@ settings; see docs/analysis.md, Validation):
   shared machine), with looser bands.
 
 Bands: γ and θ_e within 0.05 of the references and θ_ℓ within 0.1 in d = 3; 0.08, 0.08 and
-0.15 in d = 4. θ, the exponent of all forces, has θ_ℓ's reference and band. Each (ensemble, exponent) band is its own test; the bands an ensemble misses
-are marked xfail with the measured value (`MISSED_BANDS`). Run with
+0.15 in d = 4. θ, the exponent of all forces, has θ_ℓ's reference and band. Each (ensemble,
+exponent) band is its own test; the bands an ensemble misses are marked xfail with the
+measured value (`MISSED_BANDS`). Run with
 
     nice -n 10 python -m pytest -m slow tests/test_analysis_validation.py
 
