@@ -275,3 +275,16 @@ def test_analyze_one_packing(jammed):
         "gamma", "theta_e", "theta_l", "theta"}
     for e in analysis.exponents.values():
         assert e.interval[0] <= e.value <= e.interval[1]
+
+
+def test_theta_is_fitted_on_all_forces(jammed):
+    """θ uses every contact force, extended and localised together, whatever the rule."""
+    analysis = analyze(jammed, n_bootstrap=20)
+    assert "theta" in analysis.exponents, analysis.exponent_errors.get("theta")
+    fit = analysis.exponents["theta"].fit
+    forces = analysis.forces["all"].values
+    assert len(forces) == jammed.n_contacts
+    assert fit.n_points == np.count_nonzero((forces >= fit.lower) & (forces <= fit.upper))
+    assert analysis.exponents["theta"].value == pytest.approx(fit.slope - 1.0)
+    weakest = analyze(jammed, rule="weakest", n_bootstrap=20).exponents["theta"]
+    assert weakest.value == pytest.approx(analysis.exponents["theta"].value, abs=1e-12)
