@@ -19,7 +19,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from generators.spherocylinders import force_biased, min_distance_ratio  # noqa: E402
+from generators.spherocylinders import (force_biased, min_distance_ratio,  # noqa: E402
+                                        overlapping_pairs)
 from generators.spherocylinders.fb import rigid_body_eps_rot  # noqa: E402
 
 
@@ -32,10 +33,24 @@ def run_one(n: int, gamma: float, seed: int, **options) -> dict:
     meetings = result.history["phi"][result.history["rate"] == 0.0]
     return {"n": n, "gamma": gamma, "seed": seed, **options,
             "eps_rot_used": options.get("eps_rot", float(rigid_body_eps_rot(gamma))),
-            "phi": packing.phi,
+            "initial_density_used": result.extra["initial_density"],
+            "phi": packing.phi, "contact_p2": contact_alignment(packing),
             "S": packing.nematic_order(), "steps": result.collisions, "wall_time": wall,
             "phi_first_meeting": float(meetings[0]) if len(meetings) else None,
             "min_distance_ratio": min_distance_ratio(packing), "status": result.status}
+
+
+def contact_alignment(packing, within: float = 0.01) -> float:
+    """Mean P2(u_i · u_j) = ⟨1.5 (u_i · u_j)² − 0.5⟩ over pairs closer than (1 + within) σ_ij.
+
+    0 for contacts between randomly oriented rods, 1 for parallel ones: local alignment that
+    the global nematic order S averages away.
+    """
+    pairs = overlapping_pairs(packing, -within)
+    if len(pairs) == 0:
+        return float("nan")
+    cosines = np.einsum("ij,ij->i", packing.axes[pairs[:, 0]], packing.axes[pairs[:, 1]])
+    return float(np.mean(1.5 * cosines**2 - 0.5))
 
 
 def bench(n: int) -> None:
@@ -74,12 +89,15 @@ def plot(files: list[Path], image: Path) -> None:
     rows = [row for file in files for row in json.loads(file.read_text())]
     figure, (left, middle, right) = plt.subplots(1, 3, figsize=(15, 4.2))
     def series(row: dict) -> str:
-        """A row's curve: its "series" entry, else its rotation step and contraction rate."""
+        """A row's curve: its "series" entry (rows made before the bench recorded the start),
+        else its rotation step, start density and contraction rate (N is in the table)."""
         if "series" in row:
             return row["series"]
         rotation = _rotation(row)
         what = "rigid-body ε_r (default)" if rotation == "rigid" else f"ε_r = {rotation:g}"
-        return f"{what}, τ = {row.get('contraction_rate', 1e-4):g}"
+        eta0 = row["initial_density_used"]
+        start = f"η₀ = {eta0:g}" + (" (default)" if "initial_density" not in row else "")
+        return f"{what}, {start}, τ = {row.get('contraction_rate', 1e-4):g}"
 
     for label in sorted({series(row) for row in rows}):
         chosen = [row for row in rows if series(row) == label]
@@ -122,6 +140,8 @@ def main() -> None:
     run.add_argument("--eps-rot", type=float, default=None,
                      help="Bargiel's ε_r; default: the rigid-body value of each aspect ratio")
     run.add_argument("--contraction-rate", type=float, default=1e-4)
+    run.add_argument("--initial-density", type=float, default=None,
+                     help="nominal density of the start; default: 1.2 if the box allows it")
     run.add_argument("--out", type=Path, required=True)
     draw = sub.add_parser("plot")
     draw.add_argument("files", type=Path, nargs="+")
@@ -129,7 +149,8 @@ def main() -> None:
     arguments = parser.parse_args()
     if arguments.command == "sweep":
         sweep(arguments.n, arguments.gammas, arguments.seeds, arguments.out,
-              eps_rot=arguments.eps_rot, contraction_rate=arguments.contraction_rate)
+              eps_rot=arguments.eps_rot, contraction_rate=arguments.contraction_rate,
+              initial_density=arguments.initial_density)
     elif arguments.command == "plot":
         plot(arguments.files, arguments.image)
     else:

@@ -1,4 +1,4 @@
-"""The ``calippso`` command: generate, jam, report, convert, run ensembles, demo.
+"""The ``calippso`` command: generate, jam, report, convert, render, run ensembles, demo.
 
 Thin by design: it parses arguments, calls the library and prints. Progress bars go to
 stderr and are silenced by ``--quiet``; ``--json`` prints one JSON object on stdout instead
@@ -324,6 +324,12 @@ def generate_mls(
     show_default=True,
     help="Contraction rate τ.",
 )
+@click.option(
+    "--initial-density",
+    type=click.FloatRange(0, 2, min_open=True, max_open=True),
+    default=None,
+    help="Nominal density of the start [default: 1.2, lower if N is too small for it].",
+)
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
 @click.option(
     "-o",
@@ -334,7 +340,8 @@ def generate_mls(
     help="Output extended XYZ file (.xyz) with orientations.",
 )
 @output_options
-def generate_spherocylinders(n, aspect_ratio, contraction_rate, seed, output, out):
+def generate_spherocylinders(n, aspect_ratio, contraction_rate, initial_density, seed, output,
+                             out):
     """Force-biased packing of spherocylinders (d = 3), written as extended XYZ."""
     from generators import spherocylinders
 
@@ -343,7 +350,8 @@ def generate_spherocylinders(n, aspect_ratio, contraction_rate, seed, output, ou
             "spherocylinders are written as extended XYZ: use a .xyz name", param_hint="'-o'"
         )
     generation = spherocylinders.force_biased(
-        n, aspect_ratio, contraction_rate=contraction_rate, seed=seed, progress=out.progress
+        n, aspect_ratio, contraction_rate=contraction_rate, initial_density=initial_density,
+        seed=seed, progress=out.progress
     )
     spherocylinders.write_xyz(generation.packing, output)
     packing = generation.packing
@@ -352,6 +360,7 @@ def generate_spherocylinders(n, aspect_ratio, contraction_rate, seed, output, ou
         "protocol": "spherocylinders",
         "n": n,
         "aspect_ratio": aspect_ratio,
+        "initial_density": generation.extra["initial_density"],
         "phi": packing.phi,
         "nematic_order": packing.nematic_order(),
         "steps": generation.collisions,
@@ -364,6 +373,53 @@ def generate_spherocylinders(n, aspect_ratio, contraction_rate, seed, output, ou
         f"S = {record['nematic_order']:.3f}, {generation.wall_time:.1f} s -> {output}"
     )
     return record, text
+
+
+@cli.command()
+@click.argument("source", metavar="IN", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="Output picture (.png).",
+)
+@click.option(
+    "--backend",
+    type=click.Choice(["auto", "povray", "matplotlib"]),
+    default="auto",
+    show_default=True,
+    help="POV-Ray (ray-traced; 'auto' uses it when installed) or matplotlib.",
+)
+@click.option(
+    "--colour-by",
+    type=click.Choice(["orientation", "species"]),
+    default="orientation",
+    show_default=True,
+    help="Colour by axis direction (|u_x|, |u_y|, |u_z| as RGB) or by aspect ratio.",
+)
+@click.option("--size", type=click.IntRange(min=64), default=900, show_default=True,
+              help="Width and height in pixels.")
+@output_options
+def render(source, output, backend, colour_by, size, out):
+    """Draw a spherocylinder packing (extended XYZ from `generate spherocylinders`) as a PNG."""
+    from generators import spherocylinders
+
+    if output.suffix.lower() != ".png":
+        raise click.BadParameter("the picture is a PNG: use a .png name", param_hint="'-o'")
+    packing = spherocylinders.read_xyz(source)
+    written = spherocylinders.render(packing, output, backend=backend, colour_by=colour_by,
+                                     size=size)
+    record = {
+        "command": "render",
+        "input": str(source),
+        "output": str(written),
+        "n": packing.n,
+        "phi": packing.phi,
+        "nematic_order": packing.nematic_order(),
+    }
+    return record, f"{packing.n} spherocylinders, phi = {packing.phi:.6f}: {source} -> {written}"
 
 
 class LPProgress:

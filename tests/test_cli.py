@@ -68,6 +68,45 @@ def test_generate_writes_the_packing_and_a_json_record(capfd, tmp_path):
     assert calippso.read(tmp_path / "fb.xyz").phi == pytest.approx(record["phi"], rel=1e-12)
 
 
+def test_generate_spherocylinders_records_the_start(capfd, tmp_path):
+    from generators.spherocylinders import min_distance_ratio, read_xyz
+
+    out_file = tmp_path / "rods.xyz"
+    code, out, _ = _run(capfd, "generate", "spherocylinders", "--n", "60", "--aspect-ratio", "1",
+                        "--contraction-rate", "1e-2", "--initial-density", "0.9", "-o", out_file,
+                        "--json", "--quiet")
+    assert code == 0
+    record = json.loads(out)
+    assert record["initial_density"] == 0.9 and record["n"] == 60
+    packing = read_xyz(out_file)
+    assert packing.phi == pytest.approx(record["phi"], rel=1e-9)
+    assert min_distance_ratio(packing) >= 1.0 - 1e-9
+
+
+def test_render_draws_a_spherocylinder_packing(capfd, tmp_path):
+    rods = tmp_path / "rods.xyz"
+    assert main(["generate", "spherocylinders", "--n", "130", "--aspect-ratio", "2",
+                 "--contraction-rate", "1e-2", "-o", str(rods), "--quiet"]) == 0
+    capfd.readouterr()
+    picture = tmp_path / "rods.png"
+    code, out, _ = _run(capfd, "render", rods, "-o", picture, "--backend", "matplotlib",
+                        "--size", "200", "--json")
+    assert code == 0
+    record = json.loads(out)
+    assert record["n"] == 130 and record["output"] == str(picture)
+    import matplotlib.image
+
+    assert matplotlib.image.imread(picture).shape[:2] == (200, 200)
+    # a PNG name is required, and a file without orientations is refused on one line
+    code, _, err = _run(capfd, "render", rods, "-o", tmp_path / "rods.jpg")
+    assert code == 2 and "png" in err
+    spheres = tmp_path / "spheres.xyz"
+    calippso.write(calippso.Packing(np.array([[0.5, 0.5, 0.5], [2.0, 2.0, 2.0]]),
+                                    np.ones(2), np.full(3, 4.0)), spheres)
+    code, _, err = _run(capfd, "render", spheres, "-o", picture)
+    assert code == 1 and err.startswith("error:") and "missing" in err
+
+
 def test_jam_json_is_the_only_stdout(capfd, tmp_path, start_2d):
     code, out, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "jammed.npz", "--json")
     assert code == 0

@@ -8,8 +8,11 @@ import numpy as np
 import pytest
 
 from generators.result import GenerationResult
-from generators.spherocylinders import (SpherocylinderPacking, force_biased, min_distance_ratio,
-                                        rigid_body_eps_rot, spherocylinder_volume)
+from generators.spherocylinders import (SpherocylinderPacking, default_initial_density,
+                                        force_biased, min_distance_ratio,
+                                        min_particles_for_box, rigid_body_eps_rot,
+                                        spherocylinder_volume)
+from generators.spherocylinders.fb import INITIAL_DENSITY
 from generators.spherocylinders.cells import pair_list
 from generators.spherocylinders.geometry import shaft_distance
 
@@ -122,6 +125,25 @@ def test_box_rule_message_gives_the_needed_n():
         force_biased(needed - 1, gamma, initial_density=eta)
     with pytest.raises(ValueError, match=f"use N >= {needed}"):  # a mixture: longest species
         force_biased(needed - 1, 0.0, mixture=(10, gamma), initial_density=eta)
+
+
+def test_default_start_is_dense_unless_the_box_forbids_it(runs):
+    # N = 200 allows the full start for spheres and short rods.
+    assert runs[0.0].extra["initial_density"] == INITIAL_DENSITY == 1.2
+    assert runs[2.0].extra["initial_density"] == INITIAL_DENSITY
+    # γ = 3 needs N >= 214 for it: N = 150 starts at the densest start the box allows …
+    gamma = 3.0
+    assert min_particles_for_box(gamma, INITIAL_DENSITY) == 214
+    longest = (gamma + 1) * (1.5 * gamma + 1) ** (-1 / 3)  # l + d at volume π/6
+    eta0 = default_initial_density(150, longest)
+    assert eta0 < INITIAL_DENSITY
+    assert min_particles_for_box(gamma, eta0) == 150
+    result = force_biased(150, gamma, contraction_rate=1e-2, seed=0)
+    assert result.extra["initial_density"] == pytest.approx(eta0, rel=1e-12)
+    assert min_distance_ratio(result.packing) >= 1.0
+    # … and a box too small even for 1.2 × the expected density is refused, naming both N.
+    with pytest.raises(ValueError, match=r"use N >= 1\d\d \(N >= 214 for the default start"):
+        force_biased(100, gamma)
 
 
 def test_pair_list_matches_brute_force():
