@@ -132,9 +132,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command")
-    parser.add_argument("--n", type=int, default=2000)
+    parser.add_argument("--n", type=int, default=2000, help="particles (default 2000)")
     run = sub.add_parser("sweep")
-    run.add_argument("--n", type=int, default=2000)
+    # the same option after the subcommand; SUPPRESS keeps a value given before it
+    run.add_argument("--n", type=int, default=argparse.SUPPRESS, help="particles (default 2000)")
     run.add_argument("--gammas", type=float, nargs="+", default=[0.0, 0.4, 1.0, 2.0, 5.0, 10.0])
     run.add_argument("--seeds", type=int, nargs="+", default=[0])
     run.add_argument("--eps-rot", type=float, default=None,

@@ -2,6 +2,7 @@
 
 python examples/spherocylinders.py                     # N = 500, aspect ratio 0.4
 python examples/spherocylinders.py --tiny --out /tmp   # N = 100
+python examples/spherocylinders.py --picture           # also a PNG (POV-Ray or matplotlib)
 """
 
 import argparse
@@ -19,6 +20,8 @@ def main(argv=None) -> None:
     parser.add_argument("--tiny", action="store_true", help="N = 100 and a fast contraction")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--out", type=Path, default=Path("."), help="folder for the .xyz file")
+    parser.add_argument("--picture", action="store_true",
+                        help="also draw spherocylinders.png (needs matplotlib or POV-Ray)")
     args = parser.parse_args(argv)
     n, rate = (100, 1e-2) if args.tiny else (args.n, 1e-4)
 
@@ -29,6 +32,8 @@ def main(argv=None) -> None:
         f"N = {n}, aspect ratio {args.aspect_ratio}: phi = {packing.phi:.4f}, "
         f"nematic order S = {packing.nematic_order():.3f}, {made.wall_time:.1f} s -> {path}"
     )
+    if args.picture:
+        print(f"picture -> {spherocylinders.render(packing, args.out / 'spherocylinders.png')}")
 
 
 if __name__ == "__main__":
