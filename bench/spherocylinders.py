@@ -21,7 +21,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from generators.spherocylinders import (force_biased, min_distance_ratio,  # noqa: E402
                                         overlapping_pairs)
-from generators.spherocylinders.fb import rigid_body_eps_rot  # noqa: E402
+from generators.spherocylinders.fb import (INITIAL_DENSITY,  # noqa: E402
+                                           estimated_density, rigid_body_eps_rot)
 
 
 def run_one(n: int, gamma: float, seed: int, **options) -> dict:
@@ -74,56 +75,84 @@ def sweep(n: int, gammas: list[float], seeds: list[int], out: Path, **options) -
                   f"min δ/σ = {row['min_distance_ratio']:.12f}", flush=True)
 
 
-def _rotation(row: dict):
-    """The group of a row: Bargiel's fixed ε_r, or "rigid" (the default, rigid-body ε_r)."""
-    value = row.get("eps_rot", "rigid")
-    return "rigid" if value is None else value
+def _rotation(row: dict) -> str:
+    """A row's rotation step: the rigid-body default, 3× it, or Bargiel's fixed ε_r."""
+    value = row.get("eps_rot")
+    if value is None:
+        return "rigid-body ε_r"
+    tripled = 3 * float(rigid_body_eps_rot(row["gamma"]))
+    if tripled > 0 and abs(value / tripled - 1) < 0.01:
+        return "3× rigid-body ε_r"
+    return f"ε_r = {value:g}"
+
+
+def start_density(row: dict) -> float:
+    """η₀ of a row; rows made before the bench recorded it used 1.2 × estimated_density."""
+    if row.get("former_start"):
+        return 1.2 * estimated_density(row["gamma"])
+    return row["initial_density_used"]
+
+
+def _start(row: dict) -> str:
+    if row.get("former_start"):
+        return "former start 1.2 × min(0.70, 4.5/γ)"
+    if row["initial_density_used"] == INITIAL_DENSITY:
+        return f"η₀ = {INITIAL_DENSITY:g}"
+    return "start lowered by the box rule"
 
 
 def plot(files: list[Path], image: Path) -> None:
+    """φ(γ), φ γ(γ) and S(γ) at τ = 1e-4, N ≥ 2000 with the default start rule, one curve per
+    rotation step and start; and φ γ against the start density η₀ at γ = 10."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rows = [row for file in files for row in json.loads(file.read_text())]
-    figure, (left, middle, right) = plt.subplots(1, 3, figsize=(15, 4.2))
-    def series(row: dict) -> str:
-        """A row's curve: its "series" entry (rows made before the bench recorded the start),
-        else its rotation step, start density and contraction rate (N is in the table)."""
-        if "series" in row:
-            return row["series"]
-        rotation = _rotation(row)
-        what = "rigid-body ε_r (default)" if rotation == "rigid" else f"ε_r = {rotation:g}"
-        eta0 = row["initial_density_used"]
-        start = f"η₀ = {eta0:g}" + (" (default)" if "initial_density" not in row else "")
-        return f"{what}, {start}, τ = {row.get('contraction_rate', 1e-4):g}"
-
-    for label in sorted({series(row) for row in rows}):
-        chosen = [row for row in rows if series(row) == label]
+    figure, (left, middle, right, scan) = plt.subplots(1, 4, figsize=(19, 4.4))
+    swept = [row for row in rows if row.get("contraction_rate", 1e-4) == 1e-4
+             and row["n"] >= 2000 and "initial_density" not in row]
+    labels = sorted({(_rotation(row), _start(row)) for row in swept},
+                    key=lambda key: (key[0] != "rigid-body ε_r", key[1] != "η₀ = 1.2", key))
+    for rotation, start in labels:
+        chosen = [row for row in swept if (_rotation(row), _start(row)) == (rotation, start)]
         gammas = sorted({row["gamma"] for row in chosen})
         phi = [[row["phi"] for row in chosen if row["gamma"] == g] for g in gammas]
         order = [[row["S"] for row in chosen if row["gamma"] == g] for g in gammas]
-        marker = "o" if "rigid" in label else "s"
-        left.errorbar(gammas, [np.mean(p) for p in phi], [np.std(p) for p in phi],
-                      marker=marker, capsize=3, label=label)
+        default = rotation == "rigid-body ε_r" and start == "η₀ = 1.2"
+        style = dict(marker="o" if start.startswith("η₀") else "s", capsize=3,
+                     lw=2.2 if default else 1.0, label=f"{rotation}, {start}"
+                     + (" (default)" if default else ""))
+        left.errorbar(gammas, [np.mean(p) for p in phi], [np.std(p) for p in phi], **style)
         middle.errorbar(gammas, [np.mean(p) * g for p, g in zip(phi, gammas)],
-                        [np.std(p) * g for p, g in zip(phi, gammas)], marker=marker, capsize=3,
-                        label=label)
-        right.plot(gammas, [np.mean(s) for s in order], marker=marker, label=label)
+                        [np.std(p) * g for p, g in zip(phi, gammas)], **style)
+        style.pop("capsize")
+        right.plot(gammas, [np.mean(s) for s in order], **style)
     reference = np.linspace(4, 90, 100)
     left.plot(reference, 4.5 / reference, "k--", lw=1, label="φ = 4.5/γ (Bargiel)")
     left.plot([0.4], [0.705], "k*", ms=10, label="Bargiel max 0.705")
-    left.set(xlabel="aspect ratio γ = l/d", ylabel="φ", yscale="log", ylim=(0.02, 0.8))
-    middle.axhspan(4.5 * 0.85, 4.5 * 1.15, color="0.85", label="Bargiel 4.5 ± 15 %")
-    middle.axhline(5.4, color="k", ls=":", lw=1, label="Williams–Philipse 5.4")
-    middle.set(xlabel="aspect ratio γ = l/d", ylabel="φ γ", ylim=(0, 8.5))
-    right.set(xlabel="aspect ratio γ = l/d", ylabel="nematic order S")
+    left.set(xlabel="aspect ratio γ = l/d", ylabel="φ", yscale="log", ylim=(0.1, 0.8))
+    for axis in (middle, scan):
+        axis.axhspan(4.5 * 0.85, 4.5 * 1.15, color="0.85", label="Bargiel 4.5 ± 15 %")
+        axis.axhline(5.4, color="k", ls=":", lw=1, label="Williams–Philipse 5.4")
+    middle.set(xlabel="aspect ratio γ = l/d", ylabel="φ γ", ylim=(0, 8))
+    right.set(xlabel="aspect ratio γ = l/d", ylabel="nematic order S", yscale="log",
+              ylim=(0.005, 1.5))
     right.axhline(0.05, color="k", ls=":", lw=1)
-    for axis, where in ((left, "lower left"), (middle, "upper left"), (right, "upper left")):
-        axis.legend(fontsize=6.5, loc=where)
+    for axis in (left, middle, right):
         axis.set_xscale("symlog", linthresh=1.0)
-        axis.set_xlim(-0.1, 100)
+        axis.set_xlim(-0.1, 30)
+    left.legend(fontsize=6.5, loc="lower left")
+    middle.legend(fontsize=6.5, loc="upper left")
+    at_ten = [row for row in rows if row["gamma"] == 10.0 and row["n"] == 2000
+              and row.get("contraction_rate", 1e-4) == 1e-4
+              and _rotation(row) == "rigid-body ε_r"]
+    starts = np.array([start_density(row) for row in at_ten])
+    scan.plot(starts, [10 * row["phi"] for row in at_ten], "o", color="C0",
+              label="γ = 10, rigid-body ε_r, τ = 1e-4")
+    scan.set(xlabel="start density η₀", ylabel="φ γ", ylim=(3, 6), xlim=(0.4, 1.6))
+    scan.legend(fontsize=6.5, loc="upper left")
     figure.tight_layout()
     figure.savefig(image, dpi=110)
 
