@@ -12,6 +12,7 @@ from generators.spherocylinders import (SpherocylinderPacking, default_initial_d
                                         force_biased, min_distance_ratio,
                                         min_particles_for_box, rigid_body_eps_rot,
                                         spherocylinder_volume)
+from generators.spherocylinders import fb as fb_module
 from generators.spherocylinders.fb import INITIAL_DENSITY
 from generators.spherocylinders.cells import pair_list
 from generators.spherocylinders.geometry import shaft_distance
@@ -197,3 +198,14 @@ def test_default_rotation_is_the_rigid_body_step():
     assert min_distance_ratio(default.packing) >= 1.0
     with pytest.raises(ValueError, match="eps_rot must be None or"):
         force_biased(n, gamma, eps_rot="fast")
+
+
+def test_wide_skin_of_all_pairs_lists_changes_nothing(monkeypatch):
+    """γ = 5, N = 500: the box holds fewer than 3 cells of one rod reach for the whole run, so
+    the lists are built over all pairs; their wider skin saves builds, not a bit of the result."""
+    wide = force_biased(500, 5.0, contraction_rate=1e-2, seed=3)
+    monkeypatch.setattr(fb_module, "BRUTE_FORCE_SKIN", fb_module.SKIN)
+    narrow = force_biased(500, 5.0, contraction_rate=1e-2, seed=3)
+    assert wide.extra["list_builds"] < narrow.extra["list_builds"]
+    assert np.array_equal(wide.packing.positions, narrow.packing.positions)
+    assert np.array_equal(wide.packing.axes, narrow.packing.axes)

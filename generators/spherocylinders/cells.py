@@ -19,6 +19,13 @@ __all__ = ["pair_list"]
 
 
 @numba.njit(cache=True, inline="always")
+def _exceeds(squared_distance, bound):
+    """Whether a distance given by its square (round-off may make it slightly negative) is at
+    least `bound` (≥ 0)."""
+    return squared_distance >= bound * bound
+
+
+@numba.njit(cache=True, inline="always")
 def _test_pair(positions, axes, half_lengths, diameters, box, skin, i, j):
     sigma = 0.5 * (diameters[i] + diameters[j])
     cutoff = sigma + skin
@@ -26,7 +33,19 @@ def _test_pair(positions, axes, half_lengths, diameters, box, skin, i, j):
     rx = minimum_image_component(positions[j, 0] - positions[i, 0], box[0])
     ry = minimum_image_component(positions[j, 1] - positions[i, 1], box[1])
     rz = minimum_image_component(positions[j, 2] - positions[i, 2], box[2])
-    if rx * rx + ry * ry + rz * rz >= reach * reach:
+    r2 = rx * rx + ry * ry + rz * rz
+    if r2 >= reach * reach:
+        return False
+    # Cheap lower bounds on the shaft distance (each shaft lies within h of its centre, and a
+    # distance to a line is 1-Lipschitz): along u_i, |r·u_i| − h_i − h_j; across u_i, the
+    # distance of centre j from the line of shaft i, minus h_j; the same with i and j swapped.
+    along_i = rx * axes[i, 0] + ry * axes[i, 1] + rz * axes[i, 2]
+    if abs(along_i) - half_lengths[i] - half_lengths[j] >= cutoff:
+        return False
+    if _exceeds(r2 - along_i * along_i, half_lengths[j] + cutoff):
+        return False
+    along_j = rx * axes[j, 0] + ry * axes[j, 1] + rz * axes[j, 2]
+    if _exceeds(r2 - along_j * along_j, half_lengths[i] + cutoff):
         return False
     d2, _, _ = segment_distance2(rx, ry, rz, axes[i, 0], axes[i, 1], axes[i, 2],
                                  axes[j, 0], axes[j, 1], axes[j, 2],

@@ -53,6 +53,11 @@ __all__ = ["default_initial_density", "estimated_density", "force_biased",
 
 #: Verlet skin, in units of the largest nominal diameter.
 SKIN = 0.3
+#: The skin when the box holds fewer than 3 cells of one particle reach, where every list is
+#: built over all N² pairs (long rods in a small box): a wider skin means fewer builds. There
+#: the list is in i < j order whatever the skin, so the pushes are summed in the same order and
+#: the packing does not change as long as the box stays in that regime.
+BRUTE_FORCE_SKIN = 1.5
 #: Bisection steps for the inner scale of one pair (relative precision 2^-40 of the bracket).
 BISECTION_STEPS = 40
 #: Default nominal density of the start, for every aspect ratio. For long rods the start sets
@@ -430,6 +435,7 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
     total_volume = n * math.pi / 6.0 / side**3  # φ = total_volume · s³
     scale = 1.0
     skin = SKIN * float(d0.max())
+    list_skin = skin
     best = (0.0, positions.copy(), axes.copy())
     last_meeting = 0.0
     meetings = list_builds = step = 0
@@ -443,9 +449,10 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
         bar = tqdm(desc="FB spherocylinders", unit=" steps")
     while step < max_steps:
         top_two = np.partition(moved, n - 2)[n - 2:] if n >= 2 else moved
-        if scale > list_scale or top_two.sum() >= skin:
+        if scale > list_scale or top_two.sum() >= list_skin:
             list_scale = scale
-            pairs = pair_list(positions, axes, scale * h0, scale * d0, box, skin)
+            list_skin = _list_skin(scale, h0, d0, box, skin)
+            pairs = pair_list(positions, axes, scale * h0, scale * d0, box, list_skin)
             overlaps = np.empty(pairs.shape[0], dtype=np.int64)
             moved[:] = 0.0
             list_builds += 1
@@ -491,6 +498,17 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
                "meetings": meetings, "list_builds": list_builds,
                "nematic_order": packing.nematic_order(), "composition": composition,
                "seed": seed})
+
+
+def _list_skin(scale: float, h0: np.ndarray, d0: np.ndarray, box: np.ndarray,
+               skin: float) -> float:
+    """The Verlet skin of a new pair list (length units): `skin`, or the wider
+    `BRUTE_FORCE_SKIN` when the cells of `cells.pair_list` (side: longest reach plus `skin`)
+    would number fewer than 3 along a side, so that the list is built over all pairs."""
+    cell_side = scale * (2.0 * float(h0.max()) + float(d0.max())) + skin
+    if np.floor(box.min() / cell_side) >= 3:
+        return skin
+    return BRUTE_FORCE_SKIN * float(d0.max())
 
 
 def _overlap_free(best, d0, h0, box) -> SpherocylinderPacking:
