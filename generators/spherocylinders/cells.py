@@ -19,6 +19,17 @@ __all__ = ["pair_list"]
 
 
 @numba.njit(cache=True, inline="always")
+def _nearest_image(x, length):
+    """Minimum image of a difference of two coordinates inside [0, L) (so |x| < L): the same
+    number as `geometry.minimum_image_component` without its division."""
+    if x >= 0.5 * length:
+        return x - length
+    if x < -0.5 * length:
+        return x + length
+    return x
+
+
+@numba.njit(cache=True, inline="always")
 def _exceeds(squared_distance, bound):
     """Whether a distance given by its square (round-off may make it slightly negative) is at
     least `bound` (≥ 0)."""
@@ -30,9 +41,9 @@ def _test_pair(positions, axes, half_lengths, diameters, box, skin, i, j):
     sigma = 0.5 * (diameters[i] + diameters[j])
     cutoff = sigma + skin
     reach = half_lengths[i] + half_lengths[j] + cutoff
-    rx = minimum_image_component(positions[j, 0] - positions[i, 0], box[0])
-    ry = minimum_image_component(positions[j, 1] - positions[i, 1], box[1])
-    rz = minimum_image_component(positions[j, 2] - positions[i, 2], box[2])
+    rx = _nearest_image(positions[j, 0] - positions[i, 0], box[0])
+    ry = _nearest_image(positions[j, 1] - positions[i, 1], box[1])
+    rz = _nearest_image(positions[j, 2] - positions[i, 2], box[2])
     r2 = rx * rx + ry * ry + rz * rz
     if r2 >= reach * reach:
         return False
