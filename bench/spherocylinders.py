@@ -2,6 +2,7 @@
 
     python bench/spherocylinders.py                      # wall time, N = 2000, γ = 0.4 and 10
     python bench/spherocylinders.py sweep --seeds 0 1 --out sweep.json
+    python bench/spherocylinders.py sweep --n 5500 --gammas 20 --out g20.json --checkpoints ckpt
     python bench/spherocylinders.py plot sweep.json [more.json …] --image docs/images/x.png
 
 Run long jobs under ``nice -n 10``. Wall times include Numba compilation only on a cold cache.
@@ -12,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -25,11 +25,12 @@ from generators.spherocylinders.fb import (INITIAL_DENSITY,  # noqa: E402
                                            estimated_density, rigid_body_eps_rot)
 
 
-def run_one(n: int, gamma: float, seed: int, **options) -> dict:
-    """One packing: φ, S, steps, wall time and the exact-distance overlap check."""
-    started = time.perf_counter()
-    result = force_biased(n, gamma, seed=seed, **options)
-    wall = time.perf_counter() - started
+def run_one(n: int, gamma: float, seed: int, checkpoint: Path | None = None,
+            **options) -> dict:
+    """One packing: φ, S, steps, wall time (of all calls, when resumed from `checkpoint`) and
+    the exact-distance overlap check."""
+    result = force_biased(n, gamma, seed=seed, checkpoint=checkpoint, **options)
+    wall = result.wall_time
     packing = result.packing
     meetings = result.history["phi"][result.history["rate"] == 0.0]
     return {"n": n, "gamma": gamma, "seed": seed, **options,
@@ -62,12 +63,21 @@ def bench(n: int) -> None:
               f"φ = {row['phi']:.4f}, S = {row['S']:.3f}")
 
 
-def sweep(n: int, gammas: list[float], seeds: list[int], out: Path, **options) -> None:
+def sweep(n: int, gammas: list[float], seeds: list[int], out: Path,
+          checkpoints: Path | None = None, **options) -> None:
+    """Run every (γ, seed), appending one row each to the JSON file `out`; with `checkpoints`,
+    each run keeps a checkpoint there (named by N, γ, seed and options), so a killed sweep
+    resumes the run it was in."""
     rows = json.loads(out.read_text()) if out.exists() else []
     options = {key: value for key, value in options.items() if value is not None}
+    if checkpoints is not None:
+        checkpoints.mkdir(parents=True, exist_ok=True)
     for gamma in gammas:
         for seed in seeds:
-            row = run_one(n, gamma, seed, **options)
+            name = "_".join([f"n{n}", f"g{gamma:g}", f"s{seed}",
+                             *(f"{key}{value:g}" for key, value in sorted(options.items()))])
+            checkpoint = None if checkpoints is None else checkpoints / f"{name}.npz"
+            row = run_one(n, gamma, seed, checkpoint=checkpoint, **options)
             rows.append(row)
             out.write_text(json.dumps(rows, indent=1))
             print(f"γ = {gamma:5}, seed {seed}: φ = {row['phi']:.4f}, S = {row['S']:.3f}, "
@@ -173,6 +183,8 @@ def main() -> None:
     run.add_argument("--initial-density", type=float, default=None,
                      help="nominal density of the start; default: 1.2 if the box allows it")
     run.add_argument("--out", type=Path, required=True)
+    run.add_argument("--checkpoints", type=Path, default=None,
+                     help="folder for one checkpoint per run: a killed sweep resumes its run")
     draw = sub.add_parser("plot")
     draw.add_argument("files", type=Path, nargs="+")
     draw.add_argument("--image", type=Path, required=True)
@@ -180,7 +192,7 @@ def main() -> None:
     if arguments.command == "sweep":
         sweep(arguments.n, arguments.gammas, arguments.seeds, arguments.out,
               eps_rot=arguments.eps_rot, contraction_rate=arguments.contraction_rate,
-              initial_density=arguments.initial_density)
+              initial_density=arguments.initial_density, checkpoints=arguments.checkpoints)
     elif arguments.command == "plot":
         plot(arguments.files, arguments.image)
     else:

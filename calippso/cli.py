@@ -331,6 +331,7 @@ def generate_mls(
     help="Nominal density of the start [default: 1.2, lower if N is too small for it].",
 )
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@checkpoint_option
 @click.option(
     "-o",
     "--output",
@@ -340,8 +341,8 @@ def generate_mls(
     help="Output extended XYZ file (.xyz) with orientations.",
 )
 @output_options
-def generate_spherocylinders(n, aspect_ratio, contraction_rate, initial_density, seed, output,
-                             out):
+def generate_spherocylinders(n, aspect_ratio, contraction_rate, initial_density, seed,
+                             checkpoint, output, out):
     """Force-biased packing of spherocylinders (d = 3), written as extended XYZ."""
     from generators import spherocylinders
 
@@ -351,7 +352,7 @@ def generate_spherocylinders(n, aspect_ratio, contraction_rate, initial_density,
         )
     generation = spherocylinders.force_biased(
         n, aspect_ratio, contraction_rate=contraction_rate, initial_density=initial_density,
-        seed=seed, progress=out.progress
+        seed=seed, progress=out.progress, checkpoint=checkpoint
     )
     spherocylinders.write_xyz(generation.packing, output)
     packing = generation.packing

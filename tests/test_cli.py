@@ -83,6 +83,18 @@ def test_generate_spherocylinders_records_the_start(capfd, tmp_path):
     assert min_distance_ratio(packing) >= 1.0 - 1e-9
 
 
+def test_generate_spherocylinders_resumes_from_its_checkpoint(capfd, tmp_path):
+    argv = ["generate", "spherocylinders", "--n", "150", "--aspect-ratio", "1",
+            "--contraction-rate", "1e-2", "--checkpoint", tmp_path / "state.npz", "--json",
+            "--quiet"]
+    code, first, _ = _run(capfd, *argv, "-o", tmp_path / "a.xyz")
+    assert code == 0 and (tmp_path / "state.npz").exists()
+    code, again, _ = _run(capfd, *argv, "-o", tmp_path / "b.xyz")  # the finished run, read back
+    assert code == 0
+    assert json.loads(again)["phi"] == json.loads(first)["phi"]
+    assert json.loads(again)["steps"] == json.loads(first)["steps"]
+
+
 def test_render_draws_a_spherocylinder_packing(capfd, tmp_path):
     rods = tmp_path / "rods.xyz"
     assert main(["generate", "spherocylinders", "--n", "130", "--aspect-ratio", "2",

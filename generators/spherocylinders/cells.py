@@ -13,7 +13,7 @@ import math
 import numba
 import numpy as np
 
-from .geometry import minimum_image_component, segment_distance2
+from .geometry import segment_distance2
 
 __all__ = ["pair_list"]
 

@@ -43,6 +43,8 @@ import time
 import numba
 import numpy as np
 
+from .._checks import check_positive
+from ..checkpoint import Checkpoint, digest
 from ..result import GenerationResult, make_history
 from .cells import pair_list
 from .geometry import min_distance_ratio, minimum_image_component, segment_distance2
@@ -332,7 +334,8 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
                  eps: float = 0.1, eps_rot: float | None = None, contraction_rate: float = 1e-4,
                  initial_density: float | None = None, regrowth: float = 1e-3,
                  tolerance: float = 1e-4, max_steps: int = 200_000, seed: int = 0,
-                 progress: bool = False) -> GenerationResult:
+                 progress: bool = False, checkpoint=None,
+                 checkpoint_every: float = 60.0) -> GenerationResult:
     """Random dense packing of spherocylinders by the force-biased algorithm (Bargiel 2008).
 
     Parameters
@@ -369,6 +372,14 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
         Seed of the random start (numpy `default_rng`).
     progress : bool
         Show a tqdm progress bar.
+    checkpoint : str or PathLike, optional
+        File (``.npz``) holding the whole state of the run (`generators.checkpoint`): written
+        atomically between two steps at most every `checkpoint_every` seconds, and once more
+        when the run ends. A call with the same arguments and an existing file continues from
+        it, bit for bit as the uninterrupted run; once the run has ended it returns the same
+        result again. A file written by a call with other arguments is refused.
+    checkpoint_every : float
+        Smallest wall time in seconds between two checkpoint writes (0: every step).
 
     Returns
     -------
@@ -384,7 +395,8 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
     ValueError
         For bad arguments, or when the box would be too small: a particle (tip to tip,
         l + d) must stay below half the box side, which needs
-        N > 48 (γ + 1)³ η₀ / (π (1.5 γ + 1)) (the message gives the N needed).
+        N > 48 (γ + 1)³ η₀ / (π (1.5 γ + 1)) (the message gives the N needed); or when
+        `checkpoint` names a file of another run.
     """
     started = time.perf_counter()
     gammas, composition = _species(n, aspect_ratio, mixture)
@@ -442,12 +454,46 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
     rows = []
     status = f"stopped after max_steps = {max_steps} steps"
     pairs = np.empty((0, 2), dtype=np.int64)
+    overlaps = np.empty(0, dtype=np.int64)
     list_scale = 0.0
+    finished = False
+    earlier_time = 0.0  # wall time of earlier calls that worked on this run (checkpoint)
+
+    saver = Checkpoint(checkpoint, "spherocylinders.force_biased", {
+        "n": n, "gammas": digest(gammas), "eps": eps, "eps_rot": digest(steps_rot),
+        "contraction_rate": contraction_rate, "initial_density": eta0, "regrowth": regrowth,
+        "tolerance": tolerance, "max_steps": max_steps, "seed": seed},
+        every=check_positive(checkpoint_every, "checkpoint_every", allow_zero=True))
+    saved = saver.load()
+    if saved is not None:
+        positions, axes, moved = saved["positions"].copy(), saved["axes"].copy(), saved["moved"].copy()
+        pairs = saved["pairs"].astype(np.int64)
+        overlaps = np.empty(pairs.shape[0], dtype=np.int64)
+        best = (float(saved["best_scale"]), saved["best_positions"].copy(),
+                saved["best_axes"].copy())
+        scale, list_scale, list_skin = (float(saved[key]) for key in
+                                        ("scale", "list_scale", "list_skin"))
+        last_meeting, earlier_time = float(saved["last_meeting"]), float(saved["wall_time"])
+        meetings, list_builds, step = (int(saved[key]) for key in
+                                       ("meetings", "list_builds", "step"))
+        rows = [tuple(row) for row in saved["rows"]]
+        status, finished = str(saved["status"]), bool(saved["finished"])
+
+    def state() -> dict:
+        return {"positions": positions, "axes": axes, "moved": moved, "pairs": pairs,
+                "best_scale": best[0], "best_positions": best[1], "best_axes": best[2],
+                "scale": scale, "list_scale": list_scale, "list_skin": list_skin,
+                "last_meeting": last_meeting, "meetings": meetings, "list_builds": list_builds,
+                "step": step, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4),
+                "status": status, "finished": finished,
+                "wall_time": earlier_time + time.perf_counter() - started}
+
     bar = None
-    if progress:
+    if progress and not finished:
         from tqdm import tqdm
-        bar = tqdm(desc="FB spherocylinders", unit=" steps")
-    while step < max_steps:
+        bar = tqdm(desc="FB spherocylinders", unit=" steps", initial=step)
+    while step < max_steps and not finished:
+        saver.maybe_save(state())
         top_two = np.partition(moved, n - 2)[n - 2:] if n >= 2 else moved
         if scale > list_scale or top_two.sum() >= list_skin:
             list_scale = scale
@@ -489,11 +535,15 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
             bar.update(1)
     if bar is not None:
         bar.close()
+    if not finished:
+        finished = True
+        saver.save(state())
 
     packing = _overlap_free(best, d0, h0, box)
     return GenerationResult(
         packing=packing, reduced_pressure=math.nan, collisions=step,
-        wall_time=time.perf_counter() - started, history=make_history(rows), status=status,
+        wall_time=earlier_time + time.perf_counter() - started, history=make_history(rows),
+        status=status,
         extra={"phi_nominal": total_volume * scale**3, "initial_density": eta0,
                "meetings": meetings, "list_builds": list_builds,
                "nematic_order": packing.nematic_order(), "composition": composition,
