@@ -149,7 +149,8 @@ def test_default_start_is_dense_unless_the_box_forbids_it(runs):
 
 def test_pair_list_matches_brute_force():
     rng = np.random.default_rng(5)
-    for n, gamma, side in [(300, 1.0, 12.0), (150, 3.0, 20.0), (60, 0.0, 5.0)]:
+    # (100, 4, 14): fewer than 3 cells per side, so the list is built over all pairs
+    for n, gamma, side in [(300, 1.0, 12.0), (150, 3.0, 20.0), (60, 0.0, 5.0), (100, 4.0, 14.0)]:
         positions = rng.uniform(0, side, (n, 3))
         axes = rng.normal(size=(n, 3))
         axes /= np.linalg.norm(axes, axis=1)[:, None]
@@ -166,6 +167,10 @@ def test_pair_list_matches_brute_force():
                 if distance < 0.5 * (diameters[i] + diameters[j]) + skin:
                     expected.add((i, j))
         assert listed == expected
+        # centres outside the box (whole periods away) give the same list
+        shifted = positions + side * rng.integers(-2, 3, (n, 3))
+        assert {tuple(pair) for pair in pair_list(shifted, axes, half, diameters, box,
+                                                  skin)} == expected
 
 
 def _gyration_radius2_by_quadrature(gamma, points=200_001):

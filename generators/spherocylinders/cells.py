@@ -133,6 +133,7 @@ def pair_list(positions: np.ndarray, axes: np.ndarray, half_lengths: np.ndarray,
     ndarray of int64, shape (M, 2)
         Each pair once, i < j.
     """
+    positions = np.mod(positions, box)  # the search takes differences of in-box coordinates
     capacity = 16 * positions.shape[0] + 64
     while True:
         out = np.empty((capacity, 2), dtype=np.int64)
