@@ -378,14 +378,7 @@ def generate_spherocylinders(n, aspect_ratio, contraction_rate, initial_density,
 
 @cli.command()
 @click.argument("source", metavar="IN", type=click.Path(exists=True, dir_okay=False, path_type=Path))
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    required=True,
-    help="Output picture (.png).",
-)
+@output_path()
 @click.option(
     "--backend",
     type=click.Choice(["auto", "povray", "matplotlib"]),
