@@ -466,7 +466,8 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
         every=check_positive(checkpoint_every, "checkpoint_every", allow_zero=True))
     saved = saver.load()
     if saved is not None:
-        positions, axes, moved = saved["positions"].copy(), saved["axes"].copy(), saved["moved"].copy()
+        positions, axes = saved["positions"].copy(), saved["axes"].copy()
+        moved = saved["moved"].copy()
         pairs = saved["pairs"].astype(np.int64)
         overlaps = np.empty(pairs.shape[0], dtype=np.int64)
         best = (float(saved["best_scale"]), saved["best_positions"].copy(),
