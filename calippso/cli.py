@@ -377,7 +377,9 @@ def generate_spherocylinders(n, aspect_ratio, contraction_rate, initial_density,
 
 
 @cli.command()
-@click.argument("source", metavar="IN", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument(
+    "source", metavar="IN", type=click.Path(exists=True, dir_okay=False, path_type=Path)
+)
 @output_path()
 @click.option(
     "--backend",
