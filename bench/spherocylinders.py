@@ -4,6 +4,7 @@
     python bench/spherocylinders.py sweep --seeds 0 1 --out sweep.json
     python bench/spherocylinders.py sweep --n 5500 --gammas 20 --out g20.json --checkpoints ckpt
     python bench/spherocylinders.py plot sweep.json [more.json …] --image docs/images/x.png
+    python bench/spherocylinders.py pairs --n 5500 --gamma 20   # one pair-list build at the start
 
 Run long jobs under ``nice -n 10``. Wall times include Numba compilation only on a cold cache.
 """
@@ -13,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +55,31 @@ def contact_alignment(packing, within: float = 0.01) -> float:
         return float("nan")
     cosines = np.einsum("ij,ij->i", packing.axes[pairs[:, 0]], packing.axes[pairs[:, 1]])
     return float(np.mean(1.5 * cosines**2 - 0.5))
+
+
+def pair_list_timing(n: int, gamma: float, repeats: int = 3) -> None:
+    """Time `cells.pair_list` on the default start (Poisson centres, random axes, η₀ = 1.2)."""
+    import math
+
+    from generators.spherocylinders.cells import pair_list
+    from generators.spherocylinders.fb import SKIN, _list_skin
+
+    d0 = np.full(n, (1.5 * gamma + 1.0) ** (-1.0 / 3.0))
+    h0 = 0.5 * gamma * d0
+    box = np.full(3, (n * math.pi / 6.0 / INITIAL_DENSITY) ** (1.0 / 3.0))
+    rng = np.random.default_rng(0)
+    positions = rng.uniform(0.0, box[0], (n, 3))
+    axes = rng.normal(size=(n, 3))
+    axes /= np.linalg.norm(axes, axis=1)[:, None]
+    skin = _list_skin(1.0, h0, d0, box, SKIN * float(d0.max()))
+    pair_list(positions[:50], axes[:50], h0[:50], d0[:50], box, skin)  # compile first
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        pairs = pair_list(positions, axes, h0, d0, box, skin)
+        times.append(time.perf_counter() - started)
+    print(f"N = {n}, γ = {gamma:g}, η₀ = {INITIAL_DENSITY:g}: {len(pairs)} pairs, "
+          f"best of {repeats} builds {min(times):.3f} s")
 
 
 def bench(n: int) -> None:
@@ -185,6 +212,9 @@ def main() -> None:
     run.add_argument("--out", type=Path, required=True)
     run.add_argument("--checkpoints", type=Path, default=None,
                      help="folder for one checkpoint per run: a killed sweep resumes its run")
+    pairs = sub.add_parser("pairs")
+    pairs.add_argument("--n", type=int, default=5500)
+    pairs.add_argument("--gamma", type=float, default=20.0)
     draw = sub.add_parser("plot")
     draw.add_argument("files", type=Path, nargs="+")
     draw.add_argument("--image", type=Path, required=True)
@@ -193,6 +223,8 @@ def main() -> None:
         sweep(arguments.n, arguments.gammas, arguments.seeds, arguments.out,
               eps_rot=arguments.eps_rot, contraction_rate=arguments.contraction_rate,
               initial_density=arguments.initial_density, checkpoints=arguments.checkpoints)
+    elif arguments.command == "pairs":
+        pair_list_timing(arguments.n, arguments.gamma)
     elif arguments.command == "plot":
         plot(arguments.files, arguments.image)
     else:
