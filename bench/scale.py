@@ -7,6 +7,7 @@ Run from the repository root:
     python bench/scale.py                                  # d = 3: N = 1k … 16k; d = 4, 5: 1k
     python bench/scale.py --cases 3:1024 3:2048 --timeout 900 --json scale.json
     python bench/scale.py --cache /tmp/ls-inputs     # keep the LS inputs for the next run
+    python bench/scale.py --cases 4:1024 --set interior_point=hipo   # further jam options
     python bench/scale.py --from-json a.json b.json --plot docs/images/scale.png
 
 With --from-json no case is run: the rows are read back (later files win for the same N, d),
@@ -26,12 +27,15 @@ import subprocess
 import sys
 import textwrap
 
+from jam import parse_options
+
 DEFAULT_CASES = ["3:1024", "3:2048", "3:4096", "3:8192", "3:16384", "4:1024", "5:1024"]
 
 CHILD = textwrap.dedent("""
     import json, os, resource, sys, time
     import calippso
     d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
+    options = json.loads(sys.argv[5])
     path = os.path.join(cache, f"ls_d{d}_n{n}_p{pressure:g}_seed1.npz") if cache else ""
     if path and os.path.exists(path):
         start = calippso.read(path)
@@ -42,7 +46,7 @@ CHILD = textwrap.dedent("""
         if path:
             calippso.write(start, path)
     clock = time.perf_counter()
-    result = calippso.jam(start)
+    result = calippso.jam(start, **options)
     total = time.perf_counter() - clock
     history = result.history
     print(json.dumps({
@@ -54,10 +58,13 @@ CHILD = textwrap.dedent("""
 """)
 
 
-def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "") -> dict:
-    """Generate (or read from `cache`) and jam one input in a subprocess; the row as a dict."""
+def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "",
+             options: dict | None = None) -> dict:
+    """Generate (or read from `cache`) and jam one input in a subprocess with the jam
+    `options`; the row as a dict."""
     try:
-        done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache],
+        done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache,
+                               json.dumps(options or {})],
                               capture_output=True, text=True, timeout=timeout, check=True)
     except subprocess.TimeoutExpired:
         return {"n": n, "d": d, "timeout": timeout}
@@ -142,7 +149,10 @@ def main() -> None:
     parser.add_argument("--from-json", nargs="+", metavar="JSON",
                         help="run nothing: read rows written by --json")
     parser.add_argument("--plot", help="draw the rows to this image (needs matplotlib)")
+    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                        help="further jam options, e.g. interior_point=hipo")
     args = parser.parse_args()
+    options = parse_options(args.set)
 
     if args.from_json:
         rows = read_rows(args.from_json)
@@ -157,7 +167,7 @@ def main() -> None:
     rows = []
     for case in args.cases:
         d, n = (int(v) for v in case.split(":"))
-        rows.append(run_case(d, n, args.pressure, args.timeout, args.cache))
+        rows.append(run_case(d, n, args.pressure, args.timeout, args.cache, options))
         print(format_row(rows[-1]), flush=True)
         if args.json:
             with open(args.json, "w") as stream:

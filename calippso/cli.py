@@ -484,6 +484,13 @@ def _jam_record(result, source, output: Path | None) -> dict:
     help="LP backend.",
 )
 @click.option(
+    "--interior-point",
+    type=click.Choice(["ipx", "hipo"]),
+    default="ipx",
+    show_default=True,
+    help="HiGHS interior point for LPs solved from scratch (hipo needs calippso[hipo]).",
+)
+@click.option(
     "--tol-gamma",
     type=positive(float),
     default=1e-12,
@@ -514,8 +521,8 @@ def _jam_record(result, source, output: Path | None) -> dict:
 )
 @checkpoint_option
 @output_options
-def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, precompress_pressure,
-        checkpoint, out):
+def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
+        precompress_pressure, checkpoint, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
@@ -527,6 +534,7 @@ def jam(input_path, output, solver, tol_gamma, tol_s, max_iters, precompress_pre
         packing,
         out.progress,
         solver=solver,
+        interior_point=interior_point,
         tol_gamma=tol_gamma,
         tol_s=tol_s,
         max_iters=max_iters,

@@ -337,6 +337,9 @@ class _Jammer:
         self.records: list[dict] = []
         self.notes: list[str] = list(notes or [])
         self.solver_name = settings.solver
+        if "highs" in (settings.solver, *settings.fallback_solvers):
+            from .solvers.highs import check_interior_point
+            check_interior_point(settings.interior_point)
         self.failed_networks: set[str] = set()
         self.retried_lps = 0
         self.stalled = False

@@ -12,6 +12,9 @@ __all__ = ["JamSettings", "SOLVERS"]
 #: Names accepted by ``jam(..., solver=...)``.
 SOLVERS = ("highs", "clarabel", "cvxpy")
 
+#: Names accepted by ``jam(..., interior_point=...)`` (HiGHS backend).
+INTERIOR_POINT_SOLVERS = ("ipx", "hipo")
+
 
 @dataclass(frozen=True)
 class JamSettings:
@@ -63,6 +66,11 @@ class JamSettings:
     warm_start : bool
         Start each LP from the optimal basis of the previous one (HiGHS: primal simplex from
         that basis, interior point + crossover when it does not pay off).
+    interior_point : str
+        HiGHS's interior-point solver for the LPs solved from scratch: "ipx" (default) or
+        "hipo" (HiGHS's newer interior point with a direct, METIS-ordered factorisation; it
+        needs the `hipo` extra, `pip install "calippso[hipo]"`). Both end with a crossover
+        to a vertex.
     precompress_pressure : float or None
         If set, first compress the input by Lubachevsky–Stillinger event-driven MD until this
         reduced pressure (`calippso.precompress`), then run the LP loop from there. For loose
@@ -93,6 +101,7 @@ class JamSettings:
     newton_start: float = 1e-4
     verify_newton: bool = False
     warm_start: bool = True
+    interior_point: str = "ipx"
     precompress_pressure: float | None = None
     pin: bool = True
     verbose: bool = False
@@ -100,6 +109,9 @@ class JamSettings:
     def __post_init__(self) -> None:
         if self.solver not in SOLVERS:
             raise ValueError(f"unknown solver {self.solver!r}: choose one of {', '.join(SOLVERS)}")
+        if self.interior_point not in INTERIOR_POINT_SOLVERS:
+            raise ValueError(f"unknown interior_point {self.interior_point!r}: choose one of "
+                             f"{', '.join(INTERIOR_POINT_SOLVERS)}")
         for name in ("tol_gamma", "tol_s", "max_step", "min_step", "feasibility_tolerance",
                      "contact_threshold", "interior_contact_threshold", "balance_tolerance",
                      "newton_start"):

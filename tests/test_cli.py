@@ -172,6 +172,8 @@ def _four_d(tmp_path):
         ),
         (["jam", "{tmp}/missing.npz", "-o", "{tmp}/out.npz"], 1, "no such file"),
         (["jam", "{overlap}", "-o", "{tmp}/out.npz"], 1, "overlap"),
+        (["jam", "{overlap}", "-o", "{tmp}/o.npz", "--interior-point", "simplex"], 2,
+         "--interior-point"),
         (["convert", "{d4}", "{tmp}/d4.xyz"], 1, "d = 4"),
         (["convert", "{d4}", "{tmp}/d4.pdb"], 1, "unknown output format"),
         (["report", "{d4}", "-o", "{tmp}/report"], 1, "missing keys"),

@@ -84,6 +84,27 @@ def test_every_backend_jams(solver):
     assert result.solver == solver
 
 
+def _hipo_available() -> bool:
+    from calippso.solvers.highs import check_interior_point
+
+    try:
+        check_interior_point("hipo")
+    except ValueError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize("interior_point", ["ipx", "hipo"])
+def test_both_interior_points_jam(interior_point):
+    """HiPO (with the hipo extra) jams like IPX; without it, the run is refused up front."""
+    start = random_sequential_addition(64, 3, 0.3, seed=11)
+    if interior_point == "hipo" and not _hipo_available():
+        with pytest.raises(ValueError, match=r"HiPO needs the highspy-extras package"):
+            jam(start, interior_point="hipo")
+        return
+    assert_jammed(jam(start, interior_point=interior_point, warm_start=False))
+
+
 @pytest.mark.slow
 def test_compressed_start_from_shared_data(shared_data):
     start = calippso.read(shared_data / "mono_N1000_fba1e-3_then_ls1e-2_seed11")
@@ -212,6 +233,8 @@ def test_unknown_solver_and_option():
     start = random_sequential_addition(16, 2, 0.3, seed=1)
     with pytest.raises(ValueError, match="unknown solver"):
         jam(start, solver="gurobi")
+    with pytest.raises(ValueError, match="unknown interior_point 'simplex'"):
+        jam(start, interior_point="simplex")
     with pytest.raises(TypeError, match="unknown jam option"):
         jam(start, not_an_option=1)
 

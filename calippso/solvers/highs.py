@@ -1,5 +1,6 @@
-"""HiGHS backend (highspy): vertex solutions, by interior point + crossover or by primal simplex
-warm-started from the previous LP's basis."""
+"""HiGHS backend (highspy): vertex solutions, by interior point (IPX, or HiPO with the
+highspy-extras package) + crossover, or by primal simplex warm-started from the previous LP's
+basis."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import contextlib
 import os
 import sys
 import time
+from importlib.metadata import version
 
 import highspy
 import numpy as np
@@ -65,6 +67,31 @@ def _stdout_to_devnull():
     finally:
         os.dup2(saved, 1)
         os.close(saved)
+
+
+def _set_interior_point(highs: highspy.Highs, name: str) -> None:
+    """Select HiGHS's interior-point solver `name` ("ipx" or "hipo") on `highs`.
+
+    Builds older than HiPO know only "ipm", which is IPX there. Where HiPO is installed, "ipm"
+    means HiPO, so IPX is asked for by name.
+
+    Raises
+    ------
+    ValueError
+        If this HiGHS build refuses it (HiPO comes only with the highspy-extras package).
+    """
+    if highs.setOptionValue("solver", name) == highspy.HighsStatus.kOk:
+        return
+    if name == "ipx" and highs.setOptionValue("solver", "ipm") == highspy.HighsStatus.kOk:
+        return
+    raise ValueError(f'interior_point="{name}" is not available in this HiGHS build '
+                     f'(highspy {version("highspy")}); HiPO needs the highspy-extras '
+                     f'package: pip install "calippso[hipo]"')
+
+
+def check_interior_point(name: str) -> None:
+    """Raise ValueError, before any LP is built, if interior point `name` is not available."""
+    _set_interior_point(_quiet_highs(), name)
 
 
 def _model(lp: LinearProgram) -> highspy.HighsLp:
@@ -166,7 +193,7 @@ def solve(lp: LinearProgram, settings: JamSettings, warm_start: Basis | None = N
             return _solution(highs, lp, start, warm_started=True)
         highs.clearSolver()
         highs.setOptionValue("simplex_iteration_limit", highspy.kHighsIInf)
-    highs.setOptionValue("solver", "ipm")
+    _set_interior_point(highs, settings.interior_point)
     highs.setOptionValue("run_crossover", "on")
     highs.setOptionValue("ipm_optimality_tolerance", 1e-12)
     highs.run()
