@@ -117,20 +117,23 @@ def phi_j(d: int) -> float:
     return {3: 0.64, 4: 0.46, 5: 0.31}[d]
 
 
-def rsa_in_box(n: int, aspect, phi: float, seed: int) -> Packing:
-    """Random sequential addition of unit spheres in a rectangular box of the given aspect."""
+def rsa_in_box(n: int, aspect, phi: float, seed: int, diameters=None) -> Packing:
+    """Random sequential addition in a rectangular box of the given aspect (unit spheres
+    unless `diameters` is given, shape (n,))."""
     aspect = np.asarray(aspect, dtype=float)
     d = aspect.shape[0]
-    volume = n * float(ball_volume(d, 0.5)) / phi
+    diameters = np.ones(n) if diameters is None else np.asarray(diameters, dtype=float)
+    volume = float(np.sum(ball_volume(d, 0.5 * diameters))) / phi
     box = aspect * (volume / np.prod(aspect)) ** (1.0 / d)
     rng = np.random.default_rng(seed)
     placed = np.zeros((0, d))
     while placed.shape[0] < n:
         trial = rng.random(d) * box
         delta = minimum_image(placed - trial, box)
-        if np.all(np.einsum("nd,nd->n", delta, delta) > 1.0):
+        sigma = 0.5 * (diameters[: placed.shape[0]] + diameters[placed.shape[0]])
+        if np.all(np.einsum("nd,nd->n", delta, delta) > sigma**2):
             placed = np.vstack([placed, trial])
-    return Packing(placed, np.ones(n), box)
+    return Packing(placed, diameters, box)
 
 
 @pytest.fixture(scope="module")
@@ -319,7 +322,10 @@ def test_real_overlap_is_refused_and_the_documented_repair_works(nearly_jammed):
 
 @pytest.mark.parametrize("aspect", [(1.0, 2.0), (1.0, 1.5, 2.0)], ids=["2d-1x2", "3d-1x1.5x2"])
 def test_rectangular_box(aspect):
-    start = rsa_in_box(96, aspect, 0.3, seed=5)
+    """Discs are the 50:50 mixture of ratio 1.4: equal discs order into a hyperstatic crystal
+    or not depending on the solver's vertex choices (HiGHS 1.15 and 1.16 differ here)."""
+    sizes = bidisperse(96, 1.4) if len(aspect) == 2 else None
+    start = rsa_in_box(96, aspect, 0.3, seed=5, diameters=sizes)
     result = jam(start)
     assert_jammed(result)
     np.testing.assert_array_equal(result.packing.box, start.box)
@@ -340,17 +346,34 @@ def test_tiny_systems(d, n, phi0, seed):
     assert_rigid(result)
 
 
+def largest_hole(packing: Packing, samples: int, seed: int) -> tuple[np.ndarray, float]:
+    """The sampled point farthest from every particle surface, and that clearance."""
+    from scipy.spatial import cKDTree
+
+    points = np.random.default_rng(seed).random((samples, packing.d)) * packing.box
+    tree = cKDTree(packing.wrapped().positions, boxsize=packing.box)
+    distances, neighbours = tree.query(points, k=8)
+    clearance = (distances - 0.5 * packing.diameters[neighbours]).min(axis=1)
+    best = int(np.argmax(clearance))
+    return points[best], float(clearance[best])
+
+
 def test_single_rattler_in_a_cage():
-    """A jammed 2-d packing with one stable disc shrunk to half: it rattles in its cage."""
+    """A small disc put into the largest hole of a jammed 2-d packing rattles there, and the
+    packing around it stays as it was: the same network, rigid, already at its jamming point."""
     start = random_sequential_addition(64, 2, 0.5, seed=6, diameters=bidisperse(64, 1.4))
     jammed = jam(start)
-    counts = np.bincount(jammed.contacts.ravel(), minlength=64)
-    caged = int(np.argmax(counts))
-    diameters = jammed.packing.diameters.copy()
-    diameters[caged] *= 0.5
-    result = jam(Packing(jammed.packing.positions, diameters, jammed.packing.box))
+    centre, clearance = largest_hole(jammed.packing, 20000, seed=1)
+    assert clearance > 0.05
+    caged = Packing(np.vstack([jammed.packing.positions, centre]),
+                    np.append(jammed.packing.diameters, clearance), jammed.packing.box)
+    result = jam(caged)
     assert_jammed(result)
-    assert result.rattlers[caged]
+    assert result.rattlers[-1]
+    assert result.n_contacts == jammed.n_contacts
+    np.testing.assert_array_equal(result.rattlers[:-1], jammed.rattlers)
+    np.testing.assert_allclose(result.packing.diameters[:-1], jammed.packing.diameters,
+                               rtol=1e-9)
 
 
 def test_single_rattler_in_a_crystal_cage():
