@@ -49,6 +49,9 @@ NEWTON_OVERLAP_TOLERANCE = 1e-12
 SMALL_BOX_MARGIN = 1e-3
 #: Smallest first bound on displacements chosen by `initial_step_bound` (mean diameters).
 INITIAL_STEP_FLOOR = 1e-3
+#: An input whose median nearest-neighbour gap exceeds this (mean diameters) is loose: a run
+#: that does not converge says that `precompress_pressure` is the remedy.
+LOOSE_INPUT_GAP = 1e-3
 #: The loop stops as stalled (not converged) after this many LPs without progress.
 STALL_LPS = 25
 #: Pairs closer than this relative gap count as touching when the LP duals are degenerate
@@ -175,10 +178,17 @@ def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
     if settings.initial_step is not None:
         step = settings.initial_step
     else:
-        distances, neighbours = search.nearest_neighbours()
-        sigma = 0.5 * (search.diameters + search.diameters[neighbours])
-        step = max(float(np.median(distances - sigma)), INITIAL_STEP_FLOOR)
+        step = max(median_gap(search), INITIAL_STEP_FLOOR)
     return float(np.clip(step, settings.min_step, settings.max_step))
+
+
+def median_gap(search: NeighborSearch) -> float:
+    """Median over particles of the surface gap |r_ij| − σ_ij to the nearest neighbour
+    (mean diameters): ~1e-6 for an LS state at reduced pressure 1e5, ~1e-2 for a
+    force-biased start at φ ≈ 0.6."""
+    distances, neighbours = search.nearest_neighbours()
+    sigma = 0.5 * (search.diameters + search.diameters[neighbours])
+    return float(np.median(distances - sigma))
 
 
 def _at_bound(displacement, bound: float):
@@ -348,6 +358,7 @@ class _Jammer:
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
         check_input_overlaps(self.search, settings.overlap_tolerance)
         self.step = initial_step_bound(self.search, settings)
+        self.input_median_gap = median_gap(self.search)
         self.checkpoint = None if checkpoint is None else Path(checkpoint)
         if self.checkpoint is not None:
             self.checkpoint_key = signature(packing, settings)
@@ -847,6 +858,11 @@ class _Jammer:
         sentence = f"{head} ({last_step}); {tail}."
         notes = self.notes + ([f"{self.retried_lps} LPs in all needed a retry"]
                               if self.retried_lps > 1 else [])
+        if not (converged or stopped) and self.input_median_gap > LOOSE_INPUT_GAP:
+            notes.append(f"the input is loose (median nearest-neighbour gap "
+                         f"{self.input_median_gap:.1e} mean diameters), where the LP loop "
+                         f"alone can take hundreds of LPs: precompress_pressure=1e5 (CLI: "
+                         f"--precompress 1e5) first compresses it by LS MD")
         if notes:
             sentence += " Notes: " + "; ".join(notes) + "."
         return sentence

@@ -281,3 +281,11 @@ def test_jam_writes_nothing_to_standard_output():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True, cwd=Path(__file__).parent)
     assert done.stdout == ""
+
+
+def test_unconverged_loose_input_points_to_precompression():
+    loose = random_sequential_addition(64, 3, 0.3, seed=11)
+    result = jam(loose, max_iters=3)
+    assert not result.converged
+    assert "the input is loose" in result.status and "precompress_pressure=1e5" in result.status
+    assert "the input is loose" not in jam(loose).status
