@@ -23,8 +23,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from generators.spherocylinders import (force_biased, min_distance_ratio,  # noqa: E402
                                         overlapping_pairs)
-from generators.spherocylinders.fb import (INITIAL_DENSITY,  # noqa: E402
-                                           estimated_density, rigid_body_eps_rot)
+from generators.spherocylinders.fb import (estimated_density,  # noqa: E402
+                                           rigid_body_eps_rot, start_density)
+
+
+#: Label of the rows made with the default start.
+DEFAULT_START = "η₀ = min(1.2, 12/γ)"
 
 
 def run_one(n: int, gamma: float, seed: int, checkpoint: Path | None = None,
@@ -58,7 +62,8 @@ def contact_alignment(packing, within: float = 0.01) -> float:
 
 
 def pair_list_timing(n: int, gamma: float, repeats: int = 3) -> None:
-    """Time `cells.pair_list` on the default start (Poisson centres, random axes, η₀ = 1.2)."""
+    """Time `cells.pair_list` on the default start (Poisson centres, random axes, η₀ =
+    min(1.2, 12/γ))."""
     import math
 
     from generators.spherocylinders.cells import pair_list
@@ -66,7 +71,7 @@ def pair_list_timing(n: int, gamma: float, repeats: int = 3) -> None:
 
     d0 = np.full(n, (1.5 * gamma + 1.0) ** (-1.0 / 3.0))
     h0 = 0.5 * gamma * d0
-    box = np.full(3, (n * math.pi / 6.0 / INITIAL_DENSITY) ** (1.0 / 3.0))
+    box = np.full(3, (n * math.pi / 6.0 / start_density(gamma)) ** (1.0 / 3.0))
     rng = np.random.default_rng(0)
     positions = rng.uniform(0.0, box[0], (n, 3))
     axes = rng.normal(size=(n, 3))
@@ -78,7 +83,7 @@ def pair_list_timing(n: int, gamma: float, repeats: int = 3) -> None:
         started = time.perf_counter()
         pairs = pair_list(positions, axes, h0, d0, box, skin)
         times.append(time.perf_counter() - started)
-    print(f"N = {n}, γ = {gamma:g}, η₀ = {INITIAL_DENSITY:g}: {len(pairs)} pairs, "
+    print(f"N = {n}, γ = {gamma:g}, η₀ = {start_density(gamma):g}: {len(pairs)} pairs, "
           f"best of {repeats} builds {min(times):.3f} s")
 
 
@@ -123,7 +128,7 @@ def _rotation(row: dict) -> str:
     return f"ε_r = {value:g}"
 
 
-def start_density(row: dict) -> float:
+def row_start_density(row: dict) -> float:
     """η₀ of a row; rows made before the bench recorded it used 1.2 × estimated_density."""
     if row.get("former_start"):
         return 1.2 * estimated_density(row["gamma"])
@@ -133,8 +138,10 @@ def start_density(row: dict) -> float:
 def _start(row: dict) -> str:
     if row.get("former_start"):
         return "former start 1.2 × min(0.70, 4.5/γ)"
-    if row["initial_density_used"] == INITIAL_DENSITY:
-        return f"η₀ = {INITIAL_DENSITY:g}"
+    if row["initial_density_used"] == start_density(row["gamma"]):
+        return DEFAULT_START
+    if row["initial_density_used"] == 1.2:
+        return "η₀ = 1.2"
     return "start lowered by the box rule"
 
 
@@ -151,14 +158,14 @@ def plot(files: list[Path], image: Path) -> None:
     swept = [row for row in rows if row.get("contraction_rate", 1e-4) == 1e-4
              and row["n"] >= 2000 and "initial_density" not in row]
     labels = sorted({(_rotation(row), _start(row)) for row in swept},
-                    key=lambda key: (key[0] != "rigid-body ε_r", key[1] != "η₀ = 1.2", key))
+                    key=lambda key: (key[0] != "rigid-body ε_r", key[1] != DEFAULT_START, key))
     for rotation, start in labels:
         chosen = [row for row in swept if (_rotation(row), _start(row)) == (rotation, start)]
         gammas = sorted({row["gamma"] for row in chosen})
         phi = [[row["phi"] for row in chosen if row["gamma"] == g] for g in gammas]
         order = [[row["S"] for row in chosen if row["gamma"] == g] for g in gammas]
-        default = rotation == "rigid-body ε_r" and start == "η₀ = 1.2"
-        style = dict(marker="o" if start.startswith("η₀") else "s", capsize=3,
+        default = rotation == "rigid-body ε_r" and start == DEFAULT_START
+        style = dict(marker="o" if start in (DEFAULT_START, "η₀ = 1.2") else "s", capsize=3,
                      lw=2.2 if default else 1.0, label=f"{rotation}, {start}"
                      + (" (default)" if default else ""))
         left.errorbar(gammas, [np.mean(p) for p in phi], [np.std(p) for p in phi], **style)
@@ -182,13 +189,16 @@ def plot(files: list[Path], image: Path) -> None:
         axis.set_xlim(-0.1, 30)
     left.legend(fontsize=6.5, loc="lower left")
     middle.legend(fontsize=6.5, loc="upper left")
-    at_ten = [row for row in rows if row["gamma"] == 10.0 and row["n"] == 2000
-              and row.get("contraction_rate", 1e-4) == 1e-4
-              and _rotation(row) == "rigid-body ε_r"]
-    starts = np.array([start_density(row) for row in at_ten])
-    scan.plot(starts, [10 * row["phi"] for row in at_ten], "o", color="C0",
-              label="γ = 10, rigid-body ε_r, τ = 1e-4")
-    scan.set(xlabel="start density η₀", ylabel="φ γ", ylim=(3, 6), xlim=(0.4, 1.6))
+    for gamma, colour in ((10.0, "C0"), (20.0, "C3")):
+        scanned = [row for row in rows if row["gamma"] == gamma and row["n"] >= 2000
+                   and row.get("contraction_rate", 1e-4) == 1e-4
+                   and _rotation(row) == "rigid-body ε_r"]
+        starts = np.array([row_start_density(row) for row in scanned])
+        scan.plot(starts, [gamma * row["phi"] for row in scanned], "o", color=colour,
+                  label=f"γ = {gamma:g}, rigid-body ε_r, τ = 1e-4")
+        scan.axvline(start_density(gamma), color=colour, ls=":", lw=1)
+    scan.set(xlabel="start density η₀ (dotted: the default min(1.2, 12/γ))", ylabel="φ γ",
+             ylim=(3, 7), xlim=(0.3, 1.6))
     scan.legend(fontsize=6.5, loc="upper left")
     figure.tight_layout()
     figure.savefig(image, dpi=110)
@@ -208,7 +218,8 @@ def main() -> None:
                      help="Bargiel's ε_r; default: the rigid-body value of each aspect ratio")
     run.add_argument("--contraction-rate", type=float, default=1e-4)
     run.add_argument("--initial-density", type=float, default=None,
-                     help="nominal density of the start; default: 1.2 if the box allows it")
+                     help="nominal density of the start; default: min(1.2, 12/γ) if the box "
+                          "allows it")
     run.add_argument("--out", type=Path, required=True)
     run.add_argument("--checkpoints", type=Path, default=None,
                      help="folder for one checkpoint per run: a killed sweep resumes its run")

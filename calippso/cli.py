@@ -328,7 +328,8 @@ def generate_mls(
     "--initial-density",
     type=click.FloatRange(0, 2, min_open=True, max_open=True),
     default=None,
-    help="Nominal density of the start [default: 1.2, lower if N is too small for it].",
+    help="Nominal density of the start [default: min(1.2, 12/γ), lower if N is too small "
+    "for it].",
 )
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
 @checkpoint_option

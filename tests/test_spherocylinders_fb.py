@@ -13,7 +13,7 @@ from generators.spherocylinders import (SpherocylinderPacking, default_initial_d
                                         min_particles_for_box, rigid_body_eps_rot,
                                         spherocylinder_volume)
 from generators.spherocylinders import fb as fb_module
-from generators.spherocylinders.fb import INITIAL_DENSITY
+from generators.spherocylinders.fb import INITIAL_DENSITY, start_density
 from generators.spherocylinders.cells import pair_list
 from generators.spherocylinders.geometry import shaft_distance
 
@@ -136,7 +136,7 @@ def test_default_start_is_dense_unless_the_box_forbids_it(runs):
     gamma = 3.0
     assert min_particles_for_box(gamma, INITIAL_DENSITY) == 214
     longest = (gamma + 1) * (1.5 * gamma + 1) ** (-1 / 3)  # l + d at volume π/6
-    eta0 = default_initial_density(150, longest)
+    eta0 = default_initial_density(150, longest, gamma)
     assert eta0 < INITIAL_DENSITY
     assert min_particles_for_box(gamma, eta0) == 150
     result = force_biased(150, gamma, contraction_rate=1e-2, seed=0)
@@ -145,6 +145,22 @@ def test_default_start_is_dense_unless_the_box_forbids_it(runs):
     # … and a box too small even for 1.2 × the expected density is refused, naming both N.
     with pytest.raises(ValueError, match=r"use N >= 1\d\d \(N >= 214 for the default start"):
         force_biased(100, gamma)
+
+
+def test_long_rods_start_at_fixed_eta0_gamma():
+    """Beyond γ = 10 the default start is 12/γ: η₀ γ, hence the overlaps per rod at the
+    start, stays fixed; the box rule is checked against that start."""
+    assert start_density(0.0) == start_density(10.0) == INITIAL_DENSITY
+    assert start_density(20.0) == pytest.approx(0.6, rel=1e-15)
+    assert start_density(80.0) == pytest.approx(0.15, rel=1e-15)
+    gamma = 20.0
+    needed = min_particles_for_box(gamma, start_density(gamma))
+    assert needed == 2739
+    with pytest.raises(ValueError, match=rf"\(N >= {needed} for the default start at 0.6\)"):
+        force_biased(1200, gamma)
+    longest = (gamma + 1) * (1.5 * gamma + 1) ** (-1 / 3)
+    assert default_initial_density(needed, longest, gamma) == pytest.approx(0.6, rel=1e-15)
+    assert default_initial_density(2000, longest, gamma) < 0.6   # lowered by the box rule
 
 
 def test_pair_list_matches_brute_force():

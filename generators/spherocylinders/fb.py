@@ -23,10 +23,13 @@ far by the turn as by the translation). A fixed ε_r (the former default 0.02) m
 γ-dependently too slow: 12× slower than the rigid-body value at γ = 0.4, 15× at γ = 2, 5× at
 γ = 10 (docs/spherocylinders.md).
 
-The start is Poisson centres with random axes at the nominal density η₀ = 1.2 for every
-aspect ratio (lower only when N is too small for the box rule). For long rods the start sets
-the result: the rods first relax while they overlap many neighbours, and a denser start packs
-them denser (γ = 10: φ γ = 3.45 from the former start 1.2 × 4.5/γ = 0.54, 4.36 from 1.2).
+The start is Poisson centres with random axes at the nominal density η₀ = min(1.2, 12/γ)
+(lower only when N is too small for the box rule). For long rods the start sets the result:
+the rods first relax while they overlap many neighbours, and a denser start packs them denser
+(γ = 10: φ γ = 3.45 from the former start 1.2 × 4.5/γ = 0.54, 4.36 from 1.2; γ = 20: 4.25
+from 0.6, 6.47 from 1.2). Holding η₀ γ fixed beyond γ = 10 holds the number of rods each rod
+overlaps at the start fixed (the random-contact scaling φ γ ≈ const of long rods), and with
+it φ γ of the packing.
 
 The nominal scale then shrinks by the relative amount 0.5^j τ, j = ceil(−log10(φ_out − φ_in))
 (τ the contraction rate). When no overlap is left at s_out, the inner and nominal scales meet:
@@ -51,7 +54,7 @@ from .geometry import min_distance_ratio, minimum_image_component, segment_dista
 from .packing import SpherocylinderPacking
 
 __all__ = ["default_initial_density", "estimated_density", "force_biased",
-           "rigid_body_eps_rot"]
+           "rigid_body_eps_rot", "start_density"]
 
 #: Verlet skin, in units of the largest nominal diameter.
 SKIN = 0.3
@@ -62,10 +65,13 @@ SKIN = 0.3
 BRUTE_FORCE_SKIN = 1.5
 #: Bisection steps for the inner scale of one pair (relative precision 2^-40 of the bracket).
 BISECTION_STEPS = 40
-#: Default nominal density of the start, for every aspect ratio. For long rods the start sets
-#: the final density (γ = 10, N = 2000, τ = 1e-4: φ γ = 3.45, 4.36, 4.89 from η₀ = 0.54, 1.2,
-#: 1.5; docs/spherocylinders.md); for spheres and short rods it hardly matters.
+#: Default nominal density of the start for spheres and rods up to γ = 10. For long rods the
+#: start sets the final density (γ = 10, N = 2000, τ = 1e-4: φ γ = 3.45, 4.36, 4.89 from
+#: η₀ = 0.54, 1.2, 1.5; docs/spherocylinders.md); for spheres and short rods it hardly matters.
 INITIAL_DENSITY = 1.2
+#: η₀ γ of the default start beyond γ = 10 (η₀ = 12/γ): a start at 1.2 gave φ γ = 6.47 at
+#: γ = 20 (N = 5500), one at 12/γ = 0.6 gave 4.25, against 4.36 at γ = 10 from 1.2.
+LONG_ROD_START = 12.0
 #: A start must lie this factor above `estimated_density` (the former default start).
 MIN_START = 1.2
 
@@ -78,11 +84,19 @@ def estimated_density(aspect_ratio: float) -> float:
     return 0.70 if aspect_ratio <= 4.5 / 0.70 else 4.5 / aspect_ratio
 
 
-def default_initial_density(n: int, longest: float) -> float:
+def start_density(aspect_ratio: float) -> float:
+    """Default nominal density of the start for this (mean) aspect ratio, before the box rule:
+    min(`INITIAL_DENSITY`, `LONG_ROD_START` / γ), i.e. 1.2 up to γ = 10 and 12/γ beyond."""
+    if aspect_ratio <= LONG_ROD_START / INITIAL_DENSITY:
+        return INITIAL_DENSITY
+    return LONG_ROD_START / aspect_ratio
+
+
+def default_initial_density(n: int, longest: float, aspect_ratio: float) -> float:
     """Nominal density of the start when `initial_density` is not given.
 
-    `INITIAL_DENSITY` (1.2) for every aspect ratio, lowered to the densest start the box rule
-    allows when N is too small for it (never below `MIN_START` × `estimated_density`, which
+    `start_density` of the mean aspect ratio, lowered to the densest start the box rule allows
+    when N is too small for it (never below `MIN_START` × `estimated_density`, which
     `force_biased` checks).
 
     Parameters
@@ -92,6 +106,8 @@ def default_initial_density(n: int, longest: float) -> float:
     longest : float
         Tip-to-tip length l + d of the longest particle, in units where every particle has the
         volume of a sphere of diameter 1.
+    aspect_ratio : float
+        Mean aspect ratio γ (number mean; with equal volumes also the volume mean).
 
     Returns
     -------
@@ -100,7 +116,7 @@ def default_initial_density(n: int, longest: float) -> float:
     """
     # l + d < L/2 with L³ = N π / (6 η₀)  ⇔  η₀ < N π / (48 (l + d)³)
     densest_allowed = n * math.pi / (48.0 * longest**3) * (1.0 - 1e-9)
-    return min(INITIAL_DENSITY, densest_allowed)
+    return min(start_density(aspect_ratio), densest_allowed)
 
 
 def gyration_radius2(aspect_ratio):
@@ -358,10 +374,11 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
         τ in (0, 1): the nominal scale shrinks by 0.5^j τ per step. Slower is denser.
     initial_density : float, optional
         Nominal packing fraction η₀ of the start (Poisson centres, random axes). Default
-        (`default_initial_density`): 1.2 for every aspect ratio, or the densest start the box
-        rule allows for this N when that is lower, but at least 1.2 × `estimated_density` of
-        the mean aspect ratio. For long rods a denser start gives a denser packing (γ = 10:
-        φ γ = 3.45 from η₀ = 0.54, 4.36 from 1.2); `extra["initial_density"]` records it.
+        (`default_initial_density`): min(1.2, 12/γ) of the mean aspect ratio γ, or the
+        densest start the box rule allows for this N when that is lower, but at least
+        1.2 × `estimated_density`. For long rods a denser start gives a denser packing
+        (γ = 10: φ γ = 3.45 from η₀ = 0.54, 4.36 from 1.2; γ = 20: 4.25 from 0.6, 6.47 from
+        1.2); `extra["initial_density"]` records it.
     regrowth : float
         Relative rise of the nominal density after the nominal and inner scales meet.
     tolerance : float
@@ -419,7 +436,7 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
     mean_gamma = float(np.mean(gammas))  # equal volumes: number and volume means coincide
     if initial_density is None:
         lowest = MIN_START * estimated_density(mean_gamma)
-        eta0 = max(default_initial_density(n, longest), lowest)
+        eta0 = max(default_initial_density(n, longest, mean_gamma), lowest)
     else:
         eta0 = initial_density
     if not (isinstance(eta0, (int, float)) and 0 < eta0 < 2):
@@ -427,9 +444,10 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
     side = (n * math.pi / 6.0 / eta0) ** (1.0 / 3.0)
     if longest >= 0.5 * side:
         needed = math.floor(48.0 * longest**3 * eta0 / math.pi) + 1
-        full = math.floor(48.0 * longest**3 * INITIAL_DENSITY / math.pi) + 1
+        default = start_density(mean_gamma)
+        full = math.floor(48.0 * longest**3 * default / math.pi) + 1
         advice = ("" if initial_density is not None else
-                  f" (N >= {full} for the default start at {INITIAL_DENSITY})")
+                  f" (N >= {full} for the default start at {default:.3g})")
         raise ValueError(
             f"box too small: with N = {n} particles ({composition}) at nominal density "
             f"{eta0:.3g} the box side is {side:.3g} but a particle is {longest:.3g} long "
