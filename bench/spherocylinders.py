@@ -29,6 +29,8 @@ from generators.spherocylinders.fb import (estimated_density,  # noqa: E402
 
 #: Label of the rows made with the default start.
 DEFAULT_START = "η₀ = min(1.2, 12/γ)"
+#: Label of long-rod rows started at 1.2, the default before η₀ γ = 12 (shown in the η₀ scan).
+FORMER_LONG_ROD_START = "η₀ = 1.2 (γ > 10)"
 
 
 def run_one(n: int, gamma: float, seed: int, checkpoint: Path | None = None,
@@ -143,7 +145,7 @@ def _start(row: dict) -> str:
     if row["initial_density_used"] == start_density(row["gamma"]):
         return DEFAULT_START
     if row["initial_density_used"] == 1.2:
-        return "η₀ = 1.2"
+        return FORMER_LONG_ROD_START
     return "start lowered by the box rule"
 
 
@@ -158,7 +160,9 @@ def plot(files: list[Path], image: Path) -> None:
     rows = [row for file in files for row in json.loads(file.read_text())]
     figure, (left, middle, right, scan) = plt.subplots(1, 4, figsize=(19, 4.4))
     swept = [row for row in rows if row.get("contraction_rate", 1e-4) == 1e-4
-             and row["n"] >= 2000 and "initial_density" not in row]
+             and row["n"] >= 2000 and _start(row) != FORMER_LONG_ROD_START
+             and row.get("initial_density", start_density(row["gamma"]))
+             == start_density(row["gamma"])]
     labels = sorted({(_rotation(row), _start(row)) for row in swept},
                     key=lambda key: (key[0] != "rigid-body ε_r", key[1] != DEFAULT_START, key))
     for rotation, start in labels:
@@ -167,7 +171,7 @@ def plot(files: list[Path], image: Path) -> None:
         phi = [[row["phi"] for row in chosen if row["gamma"] == g] for g in gammas]
         order = [[row["S"] for row in chosen if row["gamma"] == g] for g in gammas]
         default = rotation == "rigid-body ε_r" and start == DEFAULT_START
-        style = dict(marker="o" if start in (DEFAULT_START, "η₀ = 1.2") else "s", capsize=3,
+        style = dict(marker="o" if start == DEFAULT_START else "s", capsize=3,
                      lw=2.2 if default else 1.0, label=f"{rotation}, {start}"
                      + (" (default)" if default else ""))
         left.errorbar(gammas, [np.mean(p) for p in phi], [np.std(p) for p in phi], **style)
