@@ -22,6 +22,7 @@ from pathlib import Path
 import click
 
 from .ensemble import DISTRIBUTIONS, PROTOCOLS, make_diameters
+from .settings import INTERIOR_POINT_SOLVERS
 
 __all__ = ["main", "cli"]
 
@@ -486,7 +487,7 @@ def _jam_record(result, source, output: Path | None) -> dict:
 )
 @click.option(
     "--interior-point",
-    type=click.Choice(["ipx", "hipo"]),
+    type=click.Choice(INTERIOR_POINT_SOLVERS),
     default="ipx",
     show_default=True,
     help="HiGHS interior point for LPs solved from scratch (hipo needs calippso[hipo]).",

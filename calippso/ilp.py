@@ -161,7 +161,7 @@ def check_input_overlaps(search: NeighborSearch, tolerance: float) -> None:
             f"(accepted as round-off: h > -{tolerance:g})")
 
 
-def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
+def initial_step_bound(gap: float, settings: JamSettings) -> float:
     """First bound on displacements: the median nearest-neighbour surface gap, at least
     `INITIAL_STEP_FLOOR`, clipped to [min_step, max_step].
 
@@ -170,15 +170,13 @@ def initial_step_bound(search: NeighborSearch, settings: JamSettings) -> float:
 
     Parameters
     ----------
-    search : NeighborSearch
-        The input configuration (mean diameter 1).
+    gap : float
+        `median_gap` of the input configuration (mean diameters).
     settings : JamSettings
         `initial_step` overrides the rule; the result lies in [min_step, max_step].
     """
-    if settings.initial_step is not None:
-        step = settings.initial_step
-    else:
-        step = max(median_gap(search), INITIAL_STEP_FLOOR)
+    step = settings.initial_step if settings.initial_step is not None else max(
+        gap, INITIAL_STEP_FLOOR)
     return float(np.clip(step, settings.min_step, settings.max_step))
 
 
@@ -357,8 +355,8 @@ class _Jammer:
         self.basis: Basis | None = None   # warm start of the next LP
         self.search = NeighborSearch(self.positions, self.diameters, self.box)
         check_input_overlaps(self.search, settings.overlap_tolerance)
-        self.step = initial_step_bound(self.search, settings)
         self.input_median_gap = median_gap(self.search)
+        self.step = initial_step_bound(self.input_median_gap, settings)
         self.checkpoint = None if checkpoint is None else Path(checkpoint)
         if self.checkpoint is not None:
             self.checkpoint_key = signature(packing, settings)
