@@ -6,6 +6,7 @@ Lubachevsky–Stillinger generator. Run from the repository root:
     python bench/jam.py                 # default set (d = 3, N ~ 1000, HiGHS)
     python bench/jam.py --backends highs clarabel --ls 2:256 3:1024 4:512
     python bench/jam.py --no-shared --ls --random 3:256:0.2 --set max_step=0.3
+    python bench/jam.py --no-shared --seeds 1 2 3 4 5 6 7 8   # the spread over LS inputs
 
 Columns: N, d, backend, LPs, total wall time (s), share of it inside the LP solver,
 phi_J, N_c (contacts among stable particles), isostaticity gap, force balance, min gap.
@@ -77,6 +78,8 @@ def main() -> None:
     parser.add_argument("--ls", nargs="*", default=["3:1024"],
                         help="LS inputs to generate, as d:N (reduced pressure --pressure)")
     parser.add_argument("--pressure", type=float, default=1e5)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[1],
+                        help="seeds of the LS inputs (one row per seed)")
     parser.add_argument("--no-shared", action="store_true", help="skip ../shared/data inputs")
     parser.add_argument("--max-iters", type=int, default=500)
     parser.add_argument("--random", nargs="*", default=[],
@@ -90,7 +93,8 @@ def main() -> None:
         inputs += [(name, calippso.read(SHARED / name)) for name in SHARED_INPUTS]
     for spec in args.ls:
         d, n = (int(v) for v in spec.split(":"))
-        inputs.append((f"our LS d={d} p={args.pressure:g}", ls_input(d, n, args.pressure, 1)))
+        inputs += [(f"our LS d={d} p={args.pressure:g} seed {seed}",
+                    ls_input(d, n, args.pressure, seed)) for seed in args.seeds]
     for spec in args.random:
         d, n, phi = spec.split(":")
         inputs.append((f"random d={d} phi0={phi}", random_input(int(d), int(n), float(phi), 1)))
