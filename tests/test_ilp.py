@@ -96,7 +96,8 @@ def _hipo_available() -> bool:
 
 @pytest.mark.parametrize("interior_point", ["ipx", "hipo"])
 def test_both_interior_points_jam(interior_point):
-    """HiPO (with the hipo extra) jams like IPX; without it, the run is refused up front."""
+    """HiPO (with the hipo extra) jams like IPX; without it, the run is refused up front.
+    No warm starts, so that every LP is solved by the interior point under test."""
     start = random_sequential_addition(64, 3, 0.3, seed=11)
     if interior_point == "hipo" and not _hipo_available():
         with pytest.raises(ValueError, match=r"HiPO needs the highspy-extras package"):
