@@ -7,9 +7,11 @@ Lubachevsky–Stillinger generator. Run from the repository root:
     python bench/jam.py --backends highs clarabel --ls 2:256 3:1024 4:512
     python bench/jam.py --no-shared --ls --random 3:256:0.2 --set max_step=0.3
     python bench/jam.py --no-shared --seeds 1 2 3 4 5 6 7 8   # the spread over LS inputs
+    python bench/jam.py --no-shared --start fb --ls 3:1000 --pressure 1e12 --seeds 1 2 3
 
 Columns: N, d, backend, LPs, total wall time (s), share of it inside the LP solver,
-phi_J, N_c (contacts among stable particles), isostaticity gap, force balance, min gap.
+phi_J, N_c (contacts among stable particles), isostaticity gap, force balance, min gap;
+with several runs, a last line with their LPs and wall time in all.
 """
 
 from __future__ import annotations
@@ -28,12 +30,19 @@ SHARED_INPUTS = ["skoge_donev_N1000_d3_p1e12.dat", "mono_N1000_fba1e-3_then_ls1e
                  "mono_N1000_fba1e-3_phinom0.6_seed11"]
 
 
-def ls_input(d: int, n: int, pressure: float, seed: int) -> calippso.Packing:
-    """An LS packing compressed to `pressure` (bidisperse 1.4 in d = 2)."""
+def ls_input(d: int, n: int, pressure: float, seed: int, start: str = "poisson"
+             ) -> calippso.Packing:
+    """An LS packing compressed to `pressure` (bidisperse 1.4 in d = 2).
+
+    `start` is where LS begins: "poisson" (uniform random centres) or "fb" (a force-biased
+    packing, contraction rate 1e-3, the FB → LS protocol of the shared files).
+    """
     import generators
 
     sizes = (generators.diameters.bidisperse(n, 1.4, 0.5, seed=seed) if d == 2
              else generators.diameters.monodisperse(n))
+    if start == "fb":
+        sizes = generators.force_biased(sizes, d, contraction_rate=1e-3, seed=seed).packing
     return generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
                                              seed=seed).packing
 
@@ -60,7 +69,8 @@ def parse_options(pairs: list[str]) -> dict:
 
 
 def row(name: str, packing: calippso.Packing, backend: str, max_iters: int,
-        options: dict) -> str:
+        options: dict) -> tuple[str, int, float]:
+    """One table row, with the run's LP count and wall time."""
     start = time.perf_counter()
     result = calippso.jam(packing, solver=backend, max_iters=max_iters, **options)
     total = time.perf_counter() - start
@@ -69,7 +79,8 @@ def row(name: str, packing: calippso.Packing, backend: str, max_iters: int,
     return (f"{name:<44} {packing.n:>6} {packing.d:>2} {backend:>8} {result.iterations:>4} "
             f"{total:>8.2f} {share:>6.1%} {result.phi:>11.8f} {result.n_contacts:>6} "
             f"{result.isostaticity_gap:>4} {result.force_balance:>8.1e} "
-            f"{history['min_gap'][-1]:>9.1e} {'yes' if result.converged else 'NO':>4}")
+            f"{history['min_gap'][-1]:>9.1e} {'yes' if result.converged else 'NO':>4}",
+            result.iterations, total)
 
 
 def main() -> None:
@@ -80,6 +91,9 @@ def main() -> None:
     parser.add_argument("--pressure", type=float, default=1e5)
     parser.add_argument("--seeds", type=int, nargs="+", default=[1],
                         help="seeds of the LS inputs (one row per seed)")
+    parser.add_argument("--start", choices=["poisson", "fb"], default="poisson",
+                        help="where the LS inputs begin: Poisson points (default) or an FB "
+                             "packing (contraction rate 1e-3)")
     parser.add_argument("--no-shared", action="store_true", help="skip ../shared/data inputs")
     parser.add_argument("--max-iters", type=int, default=500)
     parser.add_argument("--random", nargs="*", default=[],
@@ -93,8 +107,9 @@ def main() -> None:
         inputs += [(name, calippso.read(SHARED / name)) for name in SHARED_INPUTS]
     for spec in args.ls:
         d, n = (int(v) for v in spec.split(":"))
-        inputs += [(f"our LS d={d} p={args.pressure:g} seed {seed}",
-                    ls_input(d, n, args.pressure, seed)) for seed in args.seeds]
+        label = "our LS" if args.start == "poisson" else "our FB -> LS"
+        inputs += [(f"{label} d={d} p={args.pressure:g} seed {seed}",
+                    ls_input(d, n, args.pressure, seed, args.start)) for seed in args.seeds]
     for spec in args.random:
         d, n, phi = spec.split(":")
         inputs.append((f"random d={d} phi0={phi}", random_input(int(d), int(n), float(phi), 1)))
@@ -103,9 +118,14 @@ def main() -> None:
     print(f"{'input':<44} {'N':>6} {'d':>2} {'backend':>8} {'LPs':>4} {'total s':>8} "
           f"{'solver':>6} {'phi_J':>11} {'N_c':>6} {'iso':>4} {'balance':>8} {'min gap':>9} "
           f"{'conv':>4}")
+    runs, lps, seconds = 0, 0, 0.0
     for name, packing in inputs:
         for backend in args.backends:
-            print(row(name, packing, backend, args.max_iters, options), flush=True)
+            line, iterations, total = row(name, packing, backend, args.max_iters, options)
+            print(line, flush=True)
+            runs, lps, seconds = runs + 1, lps + iterations, seconds + total
+    if runs > 1:
+        print(f"{runs} runs: {lps} LPs, {seconds:.1f} s in all, {seconds / runs:.1f} s per run")
 
 
 if __name__ == "__main__":
