@@ -193,20 +193,10 @@ def test_generators_refuse(call, pattern):
 
 # ----------------------------------------------------------------------------- CLI
 
-def _cli() -> list[str] | None:
-    """How to call the command line: the console script, or None when there is no CLI yet."""
-    try:
-        import calippso.cli  # noqa: F401
-    except ImportError:
-        return None
-    return [sys.executable, "-m", "calippso"]
+#: How to call the command line.
+CLI = [sys.executable, "-m", "calippso"]
 
 
-CLI = _cli()
-needs_cli = pytest.mark.skipif(CLI is None, reason="calippso.cli does not exist in this tree")
-
-
-@needs_cli
 @pytest.mark.parametrize("make, pattern", [
     (lambda tmp: tmp / "absent.dat", r"no such file|does not exist"),
     (lambda tmp: _write(tmp, "packing.foo", "1 2 3\n"), r"unknown file format"),
