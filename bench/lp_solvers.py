@@ -8,12 +8,16 @@ or from any packing file given with --input. Run from the repository root:
     python bench/lp_solvers.py --input ../shared/data/mono_N10000_fba1e-3_then_ls1e-2_seed21 \
         --lp 0 --only "IPX + crossover" "HiPO" "Clarabel (faer)" --log  # first LP at N = 10^4
     python bench/lp_solvers.py --lp 0 --only "+ crossover"   # IPX against HiPO, first LP
+    python bench/lp_solvers.py --input FILE --lp 10 --warm   # the loop's warm start of LP 10
 
 The HiPO row needs the highspy-extras package (`pip install ".[hipo]"`); without it the row
 says that the option is not in this build.
 
 --log prints HiGHS's own log (IPX's factorisation times); --morton renumbers the particles
 along a Morton curve first.
+
+--warm times the warm start instead. "from its own optimal basis" restarts the LP at its
+optimum: 0 iterations, so its time is what setting up and factorising a basis costs.
 
 Columns: solver and options, seconds, status, optimum γ, simplex and interior-point
 iterations (HiGHS), or interior-point iterations and seconds per iteration (Clarabel).
@@ -33,7 +37,8 @@ import calippso
 import calippso.ilp
 from calippso.lp import LinearProgram
 from calippso.solvers.conic_form import conic_form
-from calippso.solvers.highs import _model
+from calippso.solvers.base import Basis
+from calippso.solvers.highs import _mapped_basis, _model
 
 TOLERANCES = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
 
@@ -74,16 +79,17 @@ class _Captured(Exception):
     """Raised inside `jam` once the wanted LP is built, so that it is not solved there."""
 
 
-def capture_lp(start: calippso.Packing, index: int) -> LinearProgram:
-    """The LP number `index` (0-based) of `jam` on `start` (LPs before it are solved)."""
-    captured: list[LinearProgram] = []
+def capture_lp(start: calippso.Packing, index: int) -> tuple[LinearProgram, Basis | None]:
+    """The LP number `index` (0-based) of `jam` on `start` (LPs before it are solved), with
+    the warm-start basis the loop offers it (None when the loop solves it cold)."""
+    captured: list[tuple[LinearProgram, Basis | None]] = []
     real = calippso.ilp.get_solver
 
     def recording(name):
         solve = real(name)
 
         def wrapper(lp, settings, warm_start=None):
-            captured.append(lp)
+            captured.append((lp, warm_start))
             if len(captured) > index:
                 raise _Captured
             return solve(lp, settings, warm_start=warm_start)
@@ -116,6 +122,35 @@ def time_highs(lp: LinearProgram, options: dict,
             f"simplex {info.simplex_iteration_count}, ipm {info.ipm_iteration_count}")
 
 
+def time_warm(lp: LinearProgram, basis: highspy.HighsBasis, options: dict,
+              log: bool = False) -> tuple[float, str, float, str]:
+    """Primal simplex from `basis` (as the loop's warm start does), with extra `options`."""
+    highs = highspy.Highs()
+    highs.setOptionValue("output_flag", log)
+    for key, value in {**TOLERANCES, "solver": "simplex", "simplex_strategy": 4,
+                       **options}.items():
+        highs.setOptionValue(key, value)
+    highs.passModel(_model(lp))
+    highs.setBasis(basis)
+    start = time.perf_counter()
+    highs.run()
+    seconds = time.perf_counter() - start
+    info = highs.getInfo()
+    return (seconds, highs.modelStatusToString(highs.getModelStatus()),
+            -info.objective_function_value, f"simplex {info.simplex_iteration_count}")
+
+
+def optimal_basis(lp: LinearProgram) -> highspy.HighsBasis:
+    """The vertex interior point + crossover ends at, as a basis to restart from."""
+    highs = highspy.Highs()
+    highs.setOptionValue("output_flag", False)
+    for key, value in {**TOLERANCES, **HIGHS_VARIANTS["HiGHS IPX + crossover"]}.items():
+        highs.setOptionValue(key, value)
+    highs.passModel(_model(lp))
+    highs.run()
+    return highs.getBasis()
+
+
 def time_clarabel(lp: LinearProgram, method: str,
                   without_gamma: bool = False) -> tuple[float, str, float, str]:
     """Clarabel on the LP; `without_gamma` drops the dense γ column and puts a small random
@@ -138,6 +173,17 @@ def time_clarabel(lp: LinearProgram, method: str,
     return (seconds, str(solution.status), np.nan if without_gamma else -solution.obj_val,
             f"ipm {solution.iterations}, {seconds / max(solution.iterations, 1):.2f} s each")
 
+#: Options tried on the warm start (--warm), on top of primal simplex.
+WARM_VARIANTS = {
+    "warm primal (default)": {},
+    "warm, Dantzig pricing": {"simplex_primal_edge_weight_strategy": 0},
+    "warm, devex pricing": {"simplex_primal_edge_weight_strategy": 1},
+    "warm, steepest edge": {"simplex_primal_edge_weight_strategy": 2},
+    "warm, row-wise price": {"simplex_price_strategy": 1},
+    "warm, update limit 200": {"simplex_update_limit": 200},
+    "warm, update limit 2000": {"simplex_update_limit": 2000},
+}
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -147,6 +193,10 @@ def main() -> None:
     parser.add_argument("--only", nargs="+", metavar="NAME",
                         help="run only the solvers whose name contains one of these strings")
     parser.add_argument("--log", action="store_true", help="print HiGHS's log")
+    parser.add_argument("--warm", action="store_true",
+                        help="time the warm start the loop gives this LP (primal simplex from "
+                             "the previous basis, pricing options, and a restart from the LP's "
+                             "own optimal basis, which leaves only the set-up and factorisation)")
     parser.add_argument("--morton", action="store_true",
                         help="renumber the particles along a Morton curve first")
     args = parser.parse_args()
@@ -155,15 +205,24 @@ def main() -> None:
     if args.morton:
         order = morton_order(start)
         start = calippso.Packing(start.positions[order], start.diameters[order], start.box)
-    lp = capture_lp(start, args.lp)
+    lp, warm_start = capture_lp(start, args.lp)
     print(f"LP {args.lp} of the N = {start.n}, d = {start.d} run: {lp.n_rows} rows, "
           f"{lp.n_cols} columns, {lp.matrix.nnz} non-zeros")
-    variants = {name: (lambda options=options: time_highs(lp, options, args.log))
-                for name, options in HIGHS_VARIANTS.items()}
-    for method in ("faer", "qdldl"):
-        variants[f"Clarabel ({method})"] = lambda method=method: time_clarabel(lp, method)
-    variants["Clarabel (faer), no γ column"] = lambda: time_clarabel(lp, "faer",
-                                                                     without_gamma=True)
+    if args.warm:
+        basis = _mapped_basis(warm_start, lp) if warm_start is not None else None
+        if basis is None:
+            raise SystemExit(f"the loop solves LP {args.lp} cold: pick another --lp")
+        variants = {name: (lambda options=options: time_warm(lp, basis, options, args.log))
+                    for name, options in WARM_VARIANTS.items()}
+        own = optimal_basis(lp)
+        variants["from its own optimal basis"] = lambda: time_warm(lp, own, {}, args.log)
+    else:
+        variants = {name: (lambda options=options: time_highs(lp, options, args.log))
+                    for name, options in HIGHS_VARIANTS.items()}
+        for method in ("faer", "qdldl"):
+            variants[f"Clarabel ({method})"] = lambda method=method: time_clarabel(lp, method)
+        variants["Clarabel (faer), no γ column"] = lambda: time_clarabel(lp, "faer",
+                                                                         without_gamma=True)
     if args.only:
         variants = {name: run for name, run in variants.items()
                     if any(part in name for part in args.only)}
