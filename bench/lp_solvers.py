@@ -51,7 +51,13 @@ HIGHS_VARIANTS = {
     "HiGHS HiPO + crossover": {"solver": "hipo", "run_crossover": "on",
                                "ipm_optimality_tolerance": 1e-12},
     "HiGHS dual simplex": {"solver": "simplex", "simplex_strategy": 1},
-    "HiGHS parallel simplex": {"solver": "simplex", "simplex_strategy": 4},
+    "HiGHS dual simplex, LTSSF crash": {"solver": "simplex", "simplex_strategy": 1,
+                                        "simplex_crash_strategy": 1},
+    "HiGHS primal simplex": {"solver": "simplex", "simplex_strategy": 4},
+    "HiGHS primal simplex, LTSSF crash": {"solver": "simplex", "simplex_strategy": 4,
+                                          "simplex_crash_strategy": 1},
+    "HiGHS primal simplex, Bixby crash": {"solver": "simplex", "simplex_strategy": 4,
+                                          "simplex_crash_strategy": 2},
     "HiGHS PDLP": {"solver": "pdlp"},
 }
 
@@ -226,10 +232,10 @@ def main() -> None:
     if args.only:
         variants = {name: run for name, run in variants.items()
                     if any(part in name for part in args.only)}
-    print(f"{'solver':<28} {'seconds':>8} {'status':>10} {'gamma':>14}  iterations")
+    print(f"{'solver':<34} {'seconds':>8} {'status':>10} {'gamma':>14}  iterations")
     rows = [(name, run()) for name, run in variants.items()]
     for name, (seconds, status, gamma, iterations) in rows:
-        print(f"{name:<28} {seconds:>8.2f} {status:>10} {gamma:>14.6e}  {iterations}",
+        print(f"{name:<34} {seconds:>8.2f} {status:>10} {gamma:>14.6e}  {iterations}",
               flush=True)
 
 
