@@ -224,11 +224,26 @@ def generate() -> None:
     show_default=True,
     help="Growth rate dσ/dt.",
 )
+@click.option(
+    "--final-growth-rate",
+    type=positive(float),
+    default=None,
+    help="Slow end: the growth rate once the pressure reaches --slowdown-pressure "
+    "(e.g. 1e-3; the end state is then a jamming point up to d/p).",
+)
+@click.option(
+    "--slowdown-pressure",
+    type=positive(float),
+    default=1e3,
+    show_default=True,
+    help="Reduced pressure at which --final-growth-rate takes over.",
+)
 @checkpoint_option
 @output_path()
 @output_options
 def generate_ls(
-    n, d, distribution, ratio, std, seed, pressure, growth_rate, checkpoint, output, out
+    n, d, distribution, ratio, std, seed, pressure, growth_rate, final_growth_rate,
+    slowdown_pressure, checkpoint, output, out
 ):
     """Lubachevsky–Stillinger compression from random centres to a target pressure."""
     import calippso
@@ -240,6 +255,8 @@ def generate_ls(
         d=d,
         target_pressure=pressure,
         growth_rate=growth_rate,
+        final_growth_rate=final_growth_rate,
+        slowdown_pressure=slowdown_pressure,
         seed=seed,
         progress=out.progress,
         checkpoint=checkpoint,

@@ -159,11 +159,21 @@ def start_packing(packing_or_diameters, d: int | None, seed: int) -> tuple[Packi
     return poisson(diameters, d, phi=0.1, seed=seed), True
 
 
+def current_rate(rows: list[tuple], growth_rate: float, final_growth_rate: float | None,
+                 slowdown_pressure: float) -> float:
+    """The growth rate of the next window: `final_growth_rate` once any window so far
+    (history rows ``(time, phi, pressure, rate)``) reached `slowdown_pressure`."""
+    if final_growth_rate is not None and any(row[2] >= slowdown_pressure for row in rows):
+        return final_growth_rate
+    return growth_rate
+
+
 def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
                            growth_rate: float = 1e-2, target_pressure: float = 1e5,
                            temperature: float = 1.0, max_collisions: int | None = None,
                            seed: int = 0, progress: bool = False, pressure_window: int = 20,
-                           skin: float = 0.1, checkpoint=None,
+                           skin: float = 0.1, final_growth_rate: float | None = None,
+                           slowdown_pressure: float = 1e3, checkpoint=None,
                            checkpoint_every: float = 60.0) -> GenerationResult:
     """Compress hard spheres by Lubachevsky–Stillinger event-driven MD until a target pressure.
 
@@ -195,6 +205,14 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
     skin : float
         Initial Verlet-list skin, in mean diameters (adapted along the run to balance list
         rebuilds against list length; widened automatically at low density).
+    final_growth_rate : float, optional
+        If given, the growth rate from the first window whose pressure reaches
+        `slowdown_pressure` on (it stays there even if the pressure dips again). A slow end
+        lets the packing follow the collective rearrangements that open up near jamming; at
+        a constant fast rate they freeze in, and the end state lies short of a jamming point
+        (docs/howto/start-configurations.md, "A slow end"). Must not exceed `growth_rate`.
+    slowdown_pressure : float
+        Reduced pressure at which `final_growth_rate` takes over (ignored without it).
     checkpoint : str or PathLike, optional
         File (``.npz``) holding the state of the run (`generators.checkpoint`). It is written
         atomically at the end of a pressure window at most every `checkpoint_every` seconds,
@@ -225,15 +243,24 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
     growth_rate = check_positive(growth_rate, "growth_rate")
     target_pressure = check_positive(target_pressure, "target_pressure")
     temperature = check_positive(temperature, "temperature")
+    slowdown_pressure = check_positive(slowdown_pressure, "slowdown_pressure")
+    if final_growth_rate is not None:
+        final_growth_rate = check_positive(final_growth_rate, "final_growth_rate")
+        if final_growth_rate > growth_rate:
+            raise ValueError(f"final_growth_rate {final_growth_rate:g} exceeds growth_rate "
+                             f"{growth_rate:g}")
     if pressure_window < 1:
         raise ValueError(f"pressure_window must be >= 1 collision per particle, got {pressure_window}")
     start, from_diameters = start_packing(packing_or_diameters, d, seed)
     state = GrowingSpheres(start, temperature, seed, check_positive(skin, "skin"))
-    saver = Checkpoint(checkpoint, "lubachevsky_stillinger", {
-        "growth_rate": growth_rate, "temperature": temperature, "seed": int(seed),
-        "pressure_window": int(pressure_window), "skin": float(skin),
-        "start": digest(start.positions, start.diameters, start.box)},
-        every=check_positive(checkpoint_every, "checkpoint_every", allow_zero=True))
+    signature = {"growth_rate": growth_rate, "temperature": temperature, "seed": int(seed),
+                 "pressure_window": int(pressure_window), "skin": float(skin),
+                 "start": digest(start.positions, start.diameters, start.box)}
+    if final_growth_rate is not None:      # (absent from the checkpoints of one-rate runs)
+        signature.update(final_growth_rate=final_growth_rate,
+                         slowdown_pressure=slowdown_pressure)
+    saver = Checkpoint(checkpoint, "lubachevsky_stillinger", signature,
+                       every=check_positive(checkpoint_every, "checkpoint_every", allow_zero=True))
     limit = np.inf if max_collisions is None else int(max_collisions)
     rows: list[tuple] = []
     pressure = np.nan
@@ -260,9 +287,10 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
                 status = f"stopped at max_collisions = {limit} (pressure {pressure:.3g})"
                 break
             window = int(min(pressure_window * start.n, limit - state.collisions))
-            pressure = state.window(window, growth_rate)
+            rate = current_rate(rows, growth_rate, final_growth_rate, slowdown_pressure)
+            pressure = state.window(window, rate)
             phi = state.phi
-            rows.append((state.time, phi, pressure, growth_rate))
+            rows.append((state.time, phi, pressure, rate))
             bar.update(np.log10(max(pressure, 1.0)), phi=f"{phi:.5f}", p=f"{pressure:.3g}")
             saver.maybe_save(snapshot())
     finally:

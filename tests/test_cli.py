@@ -68,6 +68,17 @@ def test_generate_writes_the_packing_and_a_json_record(capfd, tmp_path):
     assert calippso.read(tmp_path / "fb.xyz").phi == pytest.approx(record["phi"], rel=1e-12)
 
 
+def test_generate_ls_with_a_slow_end(capfd, tmp_path):
+    code, out, _ = _run(capfd, "generate", "ls", "--n", "64", "--d", "3", "--pressure", "1e4",
+                        "--final-growth-rate", "1e-3", "--slowdown-pressure", "1e2",
+                        "-o", tmp_path / "ls.npz", "--json", "--quiet")
+    assert code == 0
+    assert json.loads(out)["reduced_pressure"] >= 1e4
+    code, _, err = _run(capfd, "generate", "ls", "--n", "64", "--d", "3",
+                        "--final-growth-rate", "0.1", "-o", tmp_path / "bad.npz", "--quiet")
+    assert code != 0 and "final_growth_rate 0.1 exceeds growth_rate 0.01" in err
+
+
 def test_generate_spherocylinders_records_the_start(capfd, tmp_path):
     from generators.spherocylinders import min_distance_ratio, read_xyz
 

@@ -169,6 +169,24 @@ def test_ls_run_can_be_pushed_to_a_higher_pressure(tmp_path, ls_reference):
     assert_same(high, ls_reference)
 
 
+def test_ls_slow_end_staged_through_its_slowdown_is_the_direct_run(tmp_path):
+    """Stopped before the slowdown pressure and continued past it, a slow-end run is the run
+    made directly; the slow rate is part of the run's identity."""
+    slow_end = {**LS_ARGS, "target_pressure": 1e6, "final_growth_rate": 1e-3,
+                "slowdown_pressure": 1e3}
+    direct = generators.lubachevsky_stillinger(dist.monodisperse(64), **slow_end)
+    path = tmp_path / "slow_end"
+    low = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
+                                            **{**slow_end, "target_pressure": 1e2})
+    assert np.all(low.history["rate"] == 1e-2)
+    high = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path, **slow_end)
+    assert_same(high, direct)
+    assert high.history["rate"][-1] == 1e-3
+    with pytest.raises(ValueError, match=r"differs in final_growth_rate"):
+        generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
+                                          **{**slow_end, "final_growth_rate": 1e-4})
+
+
 def test_checkpoint_of_another_run_is_refused(tmp_path):
     path = tmp_path / "other.npz"
     generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,

@@ -75,7 +75,41 @@ def test_ls_is_deterministic_for_a_seed():
     assert not np.array_equal(runs[0].packing.positions, runs[2].packing.positions)
 
 
+def test_ls_slow_end_switches_rate_once_and_keeps_it():
+    result = generators.lubachevsky_stillinger(dist.monodisperse(128), d=3, target_pressure=1e4,
+                                               seed=3, final_growth_rate=1e-3,
+                                               slowdown_pressure=1e2)
+    history = result.history
+    slow = history["rate"] == 1e-3
+    first = int(np.argmax(slow))
+    assert history["pressure"][first - 1] >= 1e2 > history["pressure"][first - 2]
+    assert np.all(slow[first:]) and not np.any(slow[:first])
+    assert result.reduced_pressure >= 1e4
+    assert_no_overlap(result.packing)
+
+
+def test_ls_slow_end_stops_at_a_jamming_point():
+    """With a slow end, the LS state is jammed up to the free-volume law: the exact jamming
+    density lies above it by φ_J/φ − 1 = d/p (to 10 %), and the LP loop barely moves it.
+    (At the constant fast rate the gap is 20-1000 times larger; docs/howto/start-configurations.md.)"""
+    import calippso
+
+    ls = generators.lubachevsky_stillinger(dist.monodisperse(128), d=3, target_pressure=1e6,
+                                           seed=2, final_growth_rate=1e-3)
+    jammed = calippso.jam(ls.packing)
+    assert jammed.converged and jammed.isostatic
+    excess = jammed.phi / ls.packing.phi - 1
+    assert excess == pytest.approx(3 / ls.reduced_pressure, rel=0.1)
+    assert len(jammed.history) <= 5
+
+
 @pytest.mark.parametrize("call, message", [
+    (lambda: generators.lubachevsky_stillinger(np.ones(64), d=3, final_growth_rate=0.1),
+     "final_growth_rate 0.1 exceeds growth_rate 0.01"),
+    (lambda: generators.lubachevsky_stillinger(np.ones(64), d=3, final_growth_rate=-1),
+     "final_growth_rate must be"),
+    (lambda: generators.lubachevsky_stillinger(np.ones(64), d=3, slowdown_pressure=0),
+     "slowdown_pressure must be"),
     (lambda: generators.lubachevsky_stillinger(np.array([1.0, -1.0, 1.0]), d=3), "diameters"),
     (lambda: generators.lubachevsky_stillinger(np.ones(10), d=1), "dimension"),
     (lambda: generators.lubachevsky_stillinger(np.ones(10)), "dimension"),
