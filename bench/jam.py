@@ -8,6 +8,7 @@ Lubachevsky–Stillinger generator. Run from the repository root:
     python bench/jam.py --no-shared --ls --random 3:256:0.2 --set max_step=0.3
     python bench/jam.py --no-shared --seeds 1 2 3 4 5 6 7 8   # the spread over LS inputs
     python bench/jam.py --no-shared --start fb --ls 3:1000 --pressure 1e12 --seeds 1 2 3
+    python bench/jam.py --no-shared --pressure 1e7 --final-growth-rate 1e-3   # LS with a slow end
 
 Columns: N, d, backend, LPs, total wall time (s), share of it inside the LP solver,
 phi_J, N_c (contacts among stable particles), isostaticity gap, force balance, min gap;
@@ -30,12 +31,13 @@ SHARED_INPUTS = ["skoge_donev_N1000_d3_p1e12.dat", "mono_N1000_fba1e-3_then_ls1e
                  "mono_N1000_fba1e-3_phinom0.6_seed11"]
 
 
-def ls_input(d: int, n: int, pressure: float, seed: int, start: str = "poisson"
-             ) -> calippso.Packing:
+def ls_input(d: int, n: int, pressure: float, seed: int, start: str = "poisson",
+             final_growth_rate: float | None = None) -> calippso.Packing:
     """An LS packing compressed to `pressure` (bidisperse 1.4 in d = 2).
 
     `start` is where LS begins: "poisson" (uniform random centres) or "fb" (a force-biased
-    packing, contraction rate 1e-3, the FB → LS protocol of the shared files).
+    packing, contraction rate 1e-3, the FB → LS protocol of the shared files). With
+    `final_growth_rate` the run slows down to it from p = 1e3 on (a slow end).
     """
     import generators
 
@@ -43,8 +45,8 @@ def ls_input(d: int, n: int, pressure: float, seed: int, start: str = "poisson"
              else generators.diameters.monodisperse(n))
     if start == "fb":
         sizes = generators.force_biased(sizes, d, contraction_rate=1e-3, seed=seed).packing
-    return generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
-                                             seed=seed).packing
+    return generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure, seed=seed,
+                                             final_growth_rate=final_growth_rate).packing
 
 
 def random_input(d: int, n: int, phi: float, seed: int) -> calippso.Packing:
@@ -94,6 +96,8 @@ def main() -> None:
     parser.add_argument("--start", choices=["poisson", "fb"], default="poisson",
                         help="where the LS inputs begin: Poisson points (default) or an FB "
                              "packing (contraction rate 1e-3)")
+    parser.add_argument("--final-growth-rate", type=float, default=None,
+                        help="give the LS inputs a slow end: this growth rate from p = 1e3 on")
     parser.add_argument("--no-shared", action="store_true", help="skip ../shared/data inputs")
     parser.add_argument("--max-iters", type=int, default=500)
     parser.add_argument("--random", nargs="*", default=[],
@@ -108,8 +112,11 @@ def main() -> None:
     for spec in args.ls:
         d, n = (int(v) for v in spec.split(":"))
         label = "our LS" if args.start == "poisson" else "our FB -> LS"
+        if args.final_growth_rate is not None:
+            label += f" end {args.final_growth_rate:g}"
         inputs += [(f"{label} d={d} p={args.pressure:g} seed {seed}",
-                    ls_input(d, n, args.pressure, seed, args.start)) for seed in args.seeds]
+                    ls_input(d, n, args.pressure, seed, args.start, args.final_growth_rate))
+                   for seed in args.seeds]
     for spec in args.random:
         d, n, phi = spec.split(":")
         inputs.append((f"random d={d} phi0={phi}", random_input(int(d), int(n), float(phi), 1)))
