@@ -656,6 +656,13 @@ def convert(source, target, out):
     help="LS target reduced pressure.",
 )
 @click.option(
+    "--final-growth-rate",
+    type=positive(float),
+    default=None,
+    help="LS slow end: this growth rate from reduced pressure 1e3 on (e.g. 1e-4 with "
+    "--pressure 1e7).",
+)
+@click.option(
     "--packings",
     type=positive(int),
     default=4,
@@ -699,6 +706,7 @@ def ensemble(
     std,
     seed,
     pressure,
+    final_growth_rate,
     packings,
     solver,
     output,
@@ -717,6 +725,7 @@ def ensemble(
         ratio=ratio,
         std=std,
         pressure=pressure,
+        final_growth_rate=final_growth_rate,
         solver=solver,
     )
     seeds = range(seed, seed + packings)

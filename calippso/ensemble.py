@@ -96,6 +96,10 @@ class EnsembleSpec:
         Parameters of the distribution.
     pressure : float
         LS target reduced pressure.
+    final_growth_rate : float, optional
+        LS only: a slow end, this growth rate from reduced pressure 1e3 on (e.g. 1e-4 with
+        `pressure` 1e7); the start is then a jamming point up to d/p
+        (docs/howto/start-configurations.md).
     phi : float
         Packing fraction of the "poisson" start (after removing overlaps it is lower).
     solver : str
@@ -111,6 +115,7 @@ class EnsembleSpec:
     ratio: float = 1.4
     std: float = 0.1
     pressure: float = 1e5
+    final_growth_rate: float | None = None
     phi: float = 0.3
     solver: str = "highs"
     jam_options: dict = field(default_factory=dict)
@@ -127,6 +132,8 @@ class EnsembleSpec:
         for name in ("ratio", "std", "pressure", "phi"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.final_growth_rate is not None and not self.final_growth_rate > 0:
+            raise ValueError(f"final_growth_rate must be > 0, got {self.final_growth_rate}")
 
     @classmethod
     def of(cls, spec: "EnsembleSpec | dict") -> "EnsembleSpec":
@@ -166,7 +173,8 @@ def generate_start(spec: EnsembleSpec, seed: int, checkpoint: Path | None = None
     sizes = make_diameters(spec.n, spec.distribution, ratio=spec.ratio, std=spec.std, seed=seed)
     if spec.protocol == "ls":
         made = generators.lubachevsky_stillinger(
-            sizes, d=spec.d, target_pressure=spec.pressure, seed=seed, checkpoint=checkpoint
+            sizes, d=spec.d, target_pressure=spec.pressure, seed=seed, checkpoint=checkpoint,
+            final_growth_rate=spec.final_growth_rate,
         )
     elif spec.protocol == "fb":
         made = generators.force_biased(sizes, spec.d, seed=seed)

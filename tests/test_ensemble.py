@@ -111,7 +111,17 @@ def test_cli_json_summary_and_spec_checks(tmp_path, capfd):
     assert code == 0 and record["failed"] == 0 and record["rows"][0]["converged"]
     with pytest.raises(ValueError, match="protocol"):
         ensemble.EnsembleSpec(protocol="magic")
+    with pytest.raises(ValueError, match="final_growth_rate must be > 0"):
+        ensemble.EnsembleSpec(final_growth_rate=0.0)
     with pytest.raises(ValueError, match="unknown ensemble spec keys"):
         ensemble.run({"nn": 3}, 1, out_dir=tmp_path)
     with pytest.raises(ValueError, match="2 seeds for 3 packings"):
         ensemble.run(SPEC, 3, seeds=[1, 2], out_dir=tmp_path)
+
+
+def test_ls_starts_with_a_slow_end_jam_in_a_few_lps(tmp_path):
+    spec = {"protocol": "ls", "n": 128, "d": 3, "pressure": 1e6, "final_growth_rate": 1e-3}
+    rows = ensemble.run(spec, 1, seeds=[2], out_dir=tmp_path, workers=1)
+    assert rows[0]["state"] == "done"
+    row = _table(tmp_path)[0]
+    assert row["isostatic"] == "True" and int(row["iterations"]) <= 5
