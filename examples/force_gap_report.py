@@ -20,8 +20,11 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     n = 64 if args.tiny else args.n
 
+    # a slow end (growth rate 1e-3 from p = 1e3 on): the LS state is then a jamming point, and
+    # the forces and gaps are those of the packing LS reached (docs/howto/start-configurations.md)
     start = generators.lubachevsky_stillinger(
-        generators.diameters.monodisperse(n), d=3, target_pressure=1e5, seed=args.seed
+        generators.diameters.monodisperse(n), d=3, target_pressure=1e7, seed=args.seed,
+        final_growth_rate=1e-3,
     )
     result = calippso.jam(start.packing)
     print(result.summary())
