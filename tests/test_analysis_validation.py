@@ -15,7 +15,7 @@ measured value (`MISSED_BANDS`). Run with
 
     nice -n 10 python -m pytest -m slow tests/test_analysis_validation.py
 
-(about an hour and a half on two cores when the packings have to be made, LS taking 210-480 s
+(about an hour and a half on two cores when the packings have to be made, LS taking 200-480 s
 per d = 3 packing; a few minutes when they are already there).
 Set CALIPPSO_VALIDATION_DIR to keep the jammed packings (one subfolder per ensemble) and the
 reports written from them between runs; without it they go to a temporary folder.
