@@ -161,6 +161,18 @@ def checkpoint_option(command: Callable) -> Callable:
     )(command)
 
 
+def final_growth_rate_option(command: Callable) -> Callable:
+    """Add ``--final-growth-rate R``: an LS slow end, rate R from the slowdown pressure on."""
+    return click.option(
+        "--final-growth-rate",
+        type=positive(float),
+        default=None,
+        help="LS slow end: this growth rate once the reduced pressure reaches the slowdown "
+        "pressure (1e3 unless set), e.g. 1e-4 with a target pressure of 1e7; the end state is "
+        "then a jamming point up to d/p.",
+    )(command)
+
+
 def output_path(option: str = "-o") -> Callable:
     return click.option(
         option,
@@ -224,13 +236,7 @@ def generate() -> None:
     show_default=True,
     help="Growth rate dσ/dt.",
 )
-@click.option(
-    "--final-growth-rate",
-    type=positive(float),
-    default=None,
-    help="Slow end: the growth rate once the pressure reaches --slowdown-pressure "
-    "(e.g. 1e-3; the end state is then a jamming point up to d/p).",
-)
+@final_growth_rate_option
 @click.option(
     "--slowdown-pressure",
     type=positive(float),
@@ -655,13 +661,7 @@ def convert(source, target, out):
     show_default=True,
     help="LS target reduced pressure.",
 )
-@click.option(
-    "--final-growth-rate",
-    type=positive(float),
-    default=None,
-    help="LS slow end: this growth rate from reduced pressure 1e3 on (e.g. 1e-4 with "
-    "--pressure 1e7).",
-)
+@final_growth_rate_option
 @click.option(
     "--packings",
     type=positive(int),
