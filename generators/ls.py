@@ -161,9 +161,11 @@ def start_packing(packing_or_diameters, d: int | None, seed: int) -> tuple[Packi
 
 def current_rate(rows: list[tuple], growth_rate: float, final_growth_rate: float | None,
                  slowdown_pressure: float) -> float:
-    """The growth rate of the next window: `final_growth_rate` once any window so far
-    (history rows ``(time, phi, pressure, rate)``) reached `slowdown_pressure`."""
-    if final_growth_rate is not None and any(row[2] >= slowdown_pressure for row in rows):
+    """The growth rate of the next window: `final_growth_rate` once a window so far (history
+    rows ``(time, phi, pressure, rate)``) reached `slowdown_pressure`. The switch is kept in
+    the rows: the last one ran at the final rate or reached the pressure."""
+    if final_growth_rate is not None and rows and (rows[-1][2] >= slowdown_pressure
+                                                   or rows[-1][3] == final_growth_rate):
         return final_growth_rate
     return growth_rate
 
