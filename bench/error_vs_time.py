@@ -1,7 +1,8 @@
 """Final error of `calippso.jam` against wall time, over convergence tolerances and backends.
 
 For each dimension, one fixed input (an LS packing of N particles at reduced pressure 1e5,
-seed 0) is jammed with every backend at every tolerance pair (tol_gamma, tol_s). Errors of
+seed 0; with --final-growth-rate R, an LS packing with a slow end: growth rate R from p = 1e3
+on, the protocol of the validation ensembles) is jammed with every backend at every tolerance pair (tol_gamma, tol_s). Errors of
 the final packing:
 
 * |min gap|: the smallest h_ij = |r_ij|/σ_ij − 1 over touching pairs (0 for exact contacts;
@@ -10,11 +11,13 @@ the final packing:
 * |isostaticity gap|: |N_c − d (N_s − 1) − 1|;
 * |Δφ|: |φ − φ of the tightest run| (smallest tol_gamma, then tol_s, with HiGHS).
 
-Run from the repository root (minutes: one jam of N = 1024, d = 3 takes ~45 s):
+Run from the repository root (one jam of N = 1024, d = 3 takes 3-8 s from a slow-end input,
+minutes from a constant-rate one; making a slow-end input takes LS 200-1000 s):
 
     python bench/error_vs_time.py
     python bench/error_vs_time.py --dims 3 --n 512 --solvers highs \
         --tolerances 1e-6:1e-4 1e-12:1e-9 --plot docs/images/error_vs_time.png
+    python bench/error_vs_time.py --pressure 1e7 --final-growth-rate 1e-4   # slow-end inputs
 
 Prints a Markdown table; writes the rows to --json and a figure per dimension to --plot
 (the dimension is appended to the file name). `--replot a.json b.json` redraws and reprints
@@ -45,12 +48,15 @@ ERRORS = {"min_gap_abs": "|min gap|", "force_balance": "force balance",
           "isostaticity_gap_abs": "|isostaticity gap|", "phi_error": "|φ − φ_tightest|"}
 
 
-def ls_input(d: int, n: int, pressure: float, seed: int) -> calippso.Packing:
-    """The fixed input: monodisperse LS packing at reduced pressure `pressure`."""
+def ls_input(d: int, n: int, pressure: float, seed: int,
+             final_growth_rate: float | None = None) -> calippso.Packing:
+    """The fixed input: monodisperse LS packing at reduced pressure `pressure`, with a slow
+    end (`final_growth_rate` from p = 1e3 on) when `final_growth_rate` is given."""
     import generators
 
     return generators.lubachevsky_stillinger(generators.diameters.monodisperse(n), d=d,
-                                             target_pressure=pressure, seed=seed).packing
+                                             target_pressure=pressure, seed=seed,
+                                             final_growth_rate=final_growth_rate).packing
 
 
 def run(packing: calippso.Packing, solver: str, tol_gamma: float, tol_s: float,
@@ -148,6 +154,8 @@ def main() -> None:
                         help="tol_gamma:tol_s pairs")
     parser.add_argument("--pressure", type=float, default=1e5)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--final-growth-rate", type=float, default=None,
+                        help="give the LS inputs a slow end: this growth rate from p = 1e3 on")
     parser.add_argument("--max-iters", type=int, default=1000)
     parser.add_argument("--json", type=Path, help="write the rows here")
     parser.add_argument("--plot", type=Path, help="figure path (d is appended to the name)")
@@ -164,7 +172,9 @@ def main() -> None:
     tolerances = [tuple(float(v) for v in pair.split(":")) for pair in args.tolerances]
     rows = []
     for d in args.dims:
-        packing = ls_input(d, args.n, args.pressure, args.seed)
+        start = time.perf_counter()
+        packing = ls_input(d, args.n, args.pressure, args.seed, args.final_growth_rate)
+        print(f"# d={d}: LS input made in {time.perf_counter() - start:.1f} s", flush=True)
         for solver in args.solvers:
             for tol_gamma, tol_s in tolerances:
                 rows.append(run(packing, solver, tol_gamma, tol_s, args.max_iters))
