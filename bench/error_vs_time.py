@@ -2,8 +2,8 @@
 
 For each dimension, one fixed input (an LS packing of N particles at reduced pressure 1e5,
 seed 0; with --final-growth-rate R, an LS packing with a slow end: growth rate R from p = 1e3
-on, the protocol of the validation ensembles) is jammed with every backend at every tolerance pair (tol_gamma, tol_s). Errors of
-the final packing:
+on, the protocol of the validation ensembles) is jammed with every backend at every
+tolerance pair (tol_gamma, tol_s). Errors of the final packing:
 
 * |min gap|: the smallest h_ij = |r_ij|/σ_ij − 1 over touching pairs (0 for exact contacts;
   a negative value would be an overlap, −min gap);
