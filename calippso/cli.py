@@ -586,20 +586,28 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
     required=True,
     help="Folder for the report.",
 )
+@click.option(
+    "--model",
+    type=click.Choice(["auto", "power_law", "cutoff"]),
+    default="auto",
+    show_default=True,
+    help="Model of the exponent fits: pure power law, power law with exponential cut-off, or "
+    "the one a likelihood-ratio test picks (docs/analysis.md).",
+)
 @output_options
-def report(results, output, out):
+def report(results, output, model, out):
     """Analyse one or more jammed results (.npz/.h5) and write a report to a folder."""
     from .io import read_result
 
     loaded = [read_result(path) for path in results]
-    page = make_report(loaded, output)
+    page = make_report(loaded, output, model=model)
     return (
         {"command": "report", "results": [str(p) for p in results], "report": str(page)},
         f"report of {len(loaded)} packing(s) -> {page}",
     )
 
 
-def make_report(results: list, folder: Path) -> Path:
+def make_report(results: list, folder: Path, **options) -> Path:
     """`calippso.report`, with a clear error where the reporting package is not installed."""
     import calippso
 
@@ -607,7 +615,7 @@ def make_report(results: list, folder: Path) -> Path:
         build = calippso.report
     except AttributeError:
         raise click.ClickException("this calippso has no report module (calippso.report)") from None
-    return Path(build(results, folder))
+    return Path(build(results, folder, **options))
 
 
 @cli.command()

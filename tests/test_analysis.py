@@ -248,6 +248,49 @@ def test_likelihood_fit_ignores_what_lies_below_the_window():
         fit_cumulative_power_law(sample, upper=0.1, method="chi2")
 
 
+def _gamma_sample(theta: float, n: int, seed: int) -> np.ndarray:
+    """Density ∝ f^θ e^(−(1 + θ) f) (mean 1): a power law only as f → 0."""
+    return np.random.default_rng(seed).gamma(1.0 + theta, 1.0 / (1.0 + theta), n)
+
+
+def test_cutoff_model_recovers_the_exponent_that_a_pure_power_law_misses():
+    forces = _gamma_sample(0.42311, 100000, seed=3)
+    pure = fit_cumulative_power_law(forces, upper=0.3, model="power_law", n_bootstrap=0)
+    cutoff = fit_cumulative_power_law(forces, upper=0.3, model="cutoff", n_bootstrap=100)
+    assert pure.slope < 1.42311 - 0.1                      # the drift of the pure law
+    assert cutoff.slope == pytest.approx(1.42311, abs=0.05)
+    assert cutoff.interval[0] < 1.42311 < cutoff.interval[1]
+    assert 0.5 < cutoff.cutoff < 3.0          # λ of the gamma density is 1.42, loosely fixed
+    auto = fit_cumulative_power_law(forces, upper=0.3, n_bootstrap=0)
+    assert auto.model == "cutoff" and auto.p_value < 1e-6
+    assert auto.slope == cutoff.slope
+    # the fitted cumulative follows the empirical one across the window
+    x, c = PooledSample.from_values(forces).cumulative()
+    for point in (0.03, 0.1, 0.3):
+        k = np.searchsorted(x, point)
+        assert auto(np.array([x[k]]))[0] == pytest.approx(c[k], rel=0.03)
+
+
+def test_auto_model_keeps_a_pure_power_law():
+    rng = np.random.default_rng(8)
+    x = rng.random(40000) ** (1.0 / 1.42311)
+    fit = fit_cumulative_power_law(x, upper=0.3, n_bootstrap=0)
+    assert fit.model == "power_law" and fit.cutoff == 0.0 and fit.p_value > 0.05
+    both = fit_cumulative_power_law(x, upper=0.3, model="cutoff", n_bootstrap=0)
+    assert both.slope == pytest.approx(1.42311, abs=0.1)
+    assert abs(both.cutoff * 0.3) < 1.0                   # λ b compatible with 0
+
+
+def test_bad_model_is_named():
+    x = np.random.default_rng(0).random(1000)
+    with pytest.raises(ValueError, match="model must be one of"):
+        fit_cumulative_power_law(x, upper=0.5, model="exponential")
+    with pytest.raises(ValueError, match="needs method"):
+        fit_cumulative_power_law(x, upper=0.5, model="cutoff", method="lsq")
+    assert fit_cumulative_power_law(x, upper=0.5, method="lsq",
+                                    n_bootstrap=0).model == "power_law"
+
+
 def test_window_scan_is_flat_on_a_pure_power_law():
     rng = np.random.default_rng(4)
     sample = PooledSample.from_values(rng.random(100000) ** (1.0 / 1.42311))
@@ -257,7 +300,9 @@ def test_window_scan_is_flat_on_a_pure_power_law():
     big = [row for row in rows if row["points"] > 2000]
     assert len(big) >= 5
     for row in big:
-        assert row["value"] == pytest.approx(0.42311, abs=0.05)
+        assert row["power_law"] == pytest.approx(0.42311, abs=0.05)
+        assert row["cutoff"] == pytest.approx(0.42311, abs=0.08)
+        assert 0 <= row["p_value"] <= 1
     assert all(row["upper"] <= 0.05 * 1.0001 for row in window_scan("gamma", sample,
                                                                     largest=0.05))
 

@@ -103,8 +103,8 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
         Upper ends of the fit windows by exponent name (defaults:
         `calippso.analysis.exponents.UPPER`).
     **fit_options
-        Passed to `fit_cumulative_power_law` (min_count, method, n_bootstrap, confidence,
-        seed).
+        Passed to `fit_cumulative_power_law` (min_count, method, model, n_bootstrap,
+        confidence, seed).
 
     Returns
     -------
@@ -120,7 +120,7 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
     samples = {"gamma": gaps, "theta_e": forces["extended"], "theta_l": forces["localized"],
                "theta": forces["all"]}
     exponents, errors, scans = {}, {}, {}
-    scan_options = {k: v for k, v in fit_options.items() if k in ("min_count", "method")}
+    scan_options = {k: v for k, v in fit_options.items() if k == "min_count"}
     for name, sample in samples.items():
         scans[name] = window_scan(name, sample, upper=uppers[name],
                                   largest=max_gap if name == "gamma" else None,

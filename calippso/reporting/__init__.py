@@ -23,8 +23,8 @@ __all__ = ["report", "plot_forces", "plot_gaps", "plot_contact_numbers", "plot_h
 
 def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.PathLike, *,
            title: str | None = None, max_gap: float = DEFAULT_MAX_GAP, rule: str = "bucklers",
-           n_bootstrap: int = 1000, seed: int = 0, max_history_figures: int | None = None,
-           ) -> Path:
+           model: str = "auto", n_bootstrap: int = 1000, seed: int = 0,
+           max_history_figures: int | None = None) -> Path:
     """Analyse one jammed packing or pool an ensemble, and write the report into `out_dir`.
 
     Files written: ``summary.json`` (φ, z, rattlers, isostaticity, exponents with intervals,
@@ -43,6 +43,8 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
         Largest gap collected (`calippso.analysis.gaps`).
     rule : {"bucklers", "weakest"}
         Localisation rule (`calippso.analysis.forces.localized_contacts`).
+    model : {"auto", "power_law", "cutoff"}
+        Model of the exponent fits (`calippso.analysis.fits.fit_cumulative_power_law`).
     n_bootstrap : int
         Bootstrap resamples per exponent.
     seed : int
@@ -65,7 +67,8 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
     items = as_results(results)
     out = Path(out_dir)
     (out / "history").mkdir(parents=True, exist_ok=True)
-    analysis = analyze(items, max_gap=max_gap, rule=rule, n_bootstrap=n_bootstrap, seed=seed)
+    analysis = analyze(items, max_gap=max_gap, rule=rule, model=model, n_bootstrap=n_bootstrap,
+                       seed=seed)
     figures = {"forces": plot_forces(analysis, out / "forces.png"),
                "gaps": plot_gaps(analysis, out / "gaps.png"),
                "contacts": plot_contact_numbers(analysis, out / "contact_numbers.png")}

@@ -30,12 +30,13 @@ def _save(fig, path: Path) -> Path:
 
 def _fit_and_reference(ax, exponent: Exponent, slope_of_reference: float, color: str,
                        label: str) -> None:
-    """The fitted power law over its window, and the reference slope through its upper end."""
+    """The fitted cumulative over its window, and the reference slope through its upper end."""
     fit = exponent.fit
     x = np.geomspace(fit.lower, fit.upper, 50)
     low, high = exponent.interval
+    model = ", with cut-off" if fit.model == "cutoff" else ""
     ax.plot(x, fit(x), "-", color=color, lw=2.2, alpha=0.8,
-            label=f"fit {label} = {exponent.value:.3f} [{low:.3f}, {high:.3f}]")
+            label=f"fit {label} = {exponent.value:.3f} [{low:.3f}, {high:.3f}]{model}")
     anchor = fit(fit.upper)
     x_ref = np.geomspace(fit.lower / 10, fit.upper, 50)
     ax.plot(x_ref, anchor * (x_ref / fit.upper) ** slope_of_reference, ":", color=color, lw=1.5,

@@ -16,6 +16,15 @@ def _fmt(value, digits: int = 4) -> str:
     return "—" if value is None else f"{value:.{digits}g}"
 
 
+def _model(exponent: dict) -> str:
+    """"power law" or "cut-off λ = …", with the likelihood-ratio p-value of the pure law."""
+    p_value = exponent.get("power_law_p_value")
+    test = "" if p_value is None or p_value != p_value else f" (p = {p_value:.2g})"
+    if exponent.get("model") == "cutoff":
+        return f"cut-off λ = {exponent['cutoff']:.3g}{test}"
+    return f"power law{test}"
+
+
 def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
              title: str) -> str:
     """The page, with figure links relative to the report folder.
@@ -49,8 +58,9 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
         f"| jam wall time (total, mean per run) | {summary['jam_wall_time_s']['total']:.1f} s, "
         f"{summary['jam_wall_time_s']['mean']:.1f} s |",
         "", "## Exponents", "",
-        "| exponent | fitted | 95 % interval | reference | window | points | bootstrap over |",
-        "|---|---|---|---|---|---|---|",
+        "| exponent | fitted | 95 % interval | reference | window | points | model "
+        "(power-law p-value) | bootstrap over |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for name, (symbol, what) in _NAMES.items():
         e = summary["exponents"].get(name)
@@ -64,17 +74,19 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
         lines.append(f"| {symbol} ({what}) | {_fmt(e['value'])} | [{_fmt(low)}, {_fmt(high)}] "
                      f"| {e['reference']:g} | [{_fmt(e['window'][0], 3)}, "
                      f"{_fmt(e['window'][1], 3)}] | {e['points_in_window']} "
-                     f"| {e['bootstrap_over']} |")
+                     f"| {_model(e)} | {e['bootstrap_over']} |")
     scans = summary.get("window_scan", {})
     if any(scans.values()):
         lines += ["", "Window check: each exponent refitted with the top of its window moved "
-                  "(top: value, points in the window); where the power law holds the value does "
-                  "not drift.", ""]
+                  "(top: pure power law / with cut-off, points in the window, p-value of the "
+                  "pure power law); where a pure power law holds its value does not drift and "
+                  "p is not small.", ""]
         for name, (symbol, _) in _NAMES.items():
             rows = scans.get(name) or []
             if rows:
                 lines.append(f"* {symbol}: " + ", ".join(
-                    f"{row['upper']:.2g}: {row['value']:.3f} ({row['points']})" for row in rows))
+                    f"{row['upper']:.2g}: {row['power_law']:.3f} / {row['cutoff']:.3f} "
+                    f"({row['points']}, p = {row['p_value']:.2g})" for row in rows))
     lines += ["", "## Distributions", "",
               f"![forces]({figures['forces'].name})", "",
               f"![gaps]({figures['gaps'].name})", "",
