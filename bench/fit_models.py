@@ -8,6 +8,13 @@ mean near 1 (the scale of forces normalised by their mean):
 * gaussian:   f^θ e^(−f²)                  (second-order correction only)
 * pure:       f^θ on [0, 1]                (no correction: what the pure model assumes)
 
+With ``--gaps`` the samples are gap-like instead, densities h^−γ on [0, 0.1] (γ = `--theta`,
+default then 0.41269), fitted over h ≤ `--tops` (default 1e-2), exponent γ = 1 − slope:
+
+* depleted-<h0>: h^−γ (1 − e^(−√(h/h0))), a finite-size depletion of the smallest gaps,
+  for h0 = 1e-6, 1e-5, 1e-4;
+* background-<h*>: h^−γ (1 + (h/h*)^γ), a constant background B = h*^−γ, h* = 0.01, 0.05, 0.2.
+
 For each density, window top and sample size, `--repeats` independent samples are drawn and
 fitted by maximum likelihood (window from the 10th smallest value to the top) with the pure
 power law, with the cut-off model, and with model "auto" (the likelihood-ratio choice); the
@@ -16,6 +23,7 @@ chose the cut-off. Run from the repository root:
 
     python bench/fit_models.py                        # θ = 0.42311, 102 000 and 20 400 values
     python bench/fit_models.py --theta 0.17 --sizes 20000 --repeats 50
+    python bench/fit_models.py --gaps --sizes 49000 --repeats 40
 """
 
 from __future__ import annotations
@@ -42,36 +50,64 @@ def draw(density: str, theta: float, n: int, rng: np.random.Generator) -> np.nda
     return np.concatenate(kept)[:n]
 
 
+def draw_gaps(density: str, gamma: float, n: int, rng: np.random.Generator) -> np.ndarray:
+    """`n` gap-like values from "depleted-<h0>" or "background-<h*>" on [0, 0.1]."""
+    kind, scale = density.split("-", 1)
+    scale = float(scale)
+    kept: list[np.ndarray] = []
+    while sum(part.size for part in kept) < n:       # rejection from h^−γ on [0, 0.1]
+        h = 0.1 * rng.random(4 * n) ** (1.0 / (1.0 - gamma))
+        if kind == "depleted":
+            accept = 1.0 - np.exp(-np.sqrt(h / scale))
+        else:
+            accept = (1.0 + (h / scale) ** gamma) / (1.0 + (0.1 / scale) ** gamma)
+        kept.append(h[rng.random(h.size) < accept])
+    return np.concatenate(kept)[:n]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--theta", type=float, default=0.42311)
+    parser.add_argument("--gaps", action="store_true", help="gap-like samples (see above)")
+    parser.add_argument("--theta", type=float, default=None,
+                        help="exponent (default 0.42311, or γ = 0.41269 with --gaps)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[102000, 20400],
                         help="values per sample (default: 34 packings × 3000 and × 600)")
-    parser.add_argument("--tops", type=float, nargs="+", default=[0.1, 0.3, 1.0])
-    parser.add_argument("--densities", nargs="+", default=["gamma", "rational", "gaussian",
-                                                           "pure"])
+    parser.add_argument("--tops", type=float, nargs="+", default=None,
+                        help="window tops (default 0.1 0.3 1, or 0.01 with --gaps)")
+    parser.add_argument("--densities", nargs="+", default=None)
     parser.add_argument("--repeats", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
+    if args.gaps:
+        theta = 0.41269 if args.theta is None else args.theta
+        tops = args.tops or [1e-2]
+        densities = args.densities or ["depleted-1e-6", "depleted-1e-5", "depleted-1e-4",
+                                       "background-0.01", "background-0.05", "background-0.2"]
+    else:
+        theta = 0.42311 if args.theta is None else args.theta
+        tops = args.tops or [0.1, 0.3, 1.0]
+        densities = args.densities or ["gamma", "rational", "gaussian", "pure"]
     rng = np.random.default_rng(args.seed)
-    print(f"θ = {args.theta}; {args.repeats} samples per row; mean − θ ± standard deviation")
-    print(f"{'density':>9} {'values':>7} {'top':>5} {'in window':>9} | {'power law':>15} "
+    print(f"exponent {theta}; {args.repeats} samples per row; mean − exponent ± standard "
+          "deviation")
+    print(f"{'density':>16} {'values':>7} {'top':>5} {'in window':>9} | {'power law':>15} "
           f"{'cut-off':>15} {'auto':>15} {'auto: cut-off':>13}")
-    for density in args.densities:
+    for density in densities:
         for n in args.sizes:
-            for top in args.tops:
+            for top in tops:
                 found = {"power_law": [], "cutoff": [], "auto": []}
                 chose_cutoff, points = 0, 0
                 for _ in range(args.repeats):
-                    sample = draw(density, args.theta, n, rng)
+                    sample = (draw_gaps if args.gaps else draw)(density, theta, n, rng)
                     for model in found:
                         fit = fit_cumulative_power_law(sample, top, model=model, n_bootstrap=0)
-                        found[model].append(fit.slope - 1.0 - args.theta)
+                        exponent = 1.0 - fit.slope if args.gaps else fit.slope - 1.0
+                        found[model].append(exponent - theta)
                     chose_cutoff += fit.model == "cutoff"
                     points += fit.n_points
                 cells = " ".join(f"{np.mean(v):+7.3f} ± {np.std(v):5.3f}"
                                  for v in found.values())
-                print(f"{density:>9} {n:7d} {top:5.2g} {points // args.repeats:9d} | {cells} "
+                print(f"{density:>16} {n:7d} {top:5.2g} {points // args.repeats:9d} | {cells} "
                       f"{chose_cutoff / args.repeats:12.0%}")
 
 

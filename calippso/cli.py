@@ -589,10 +589,10 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
 @click.option(
     "--model",
     type=click.Choice(["auto", "power_law", "cutoff"]),
-    default="auto",
-    show_default=True,
-    help="Model of the exponent fits: pure power law, power law with exponential cut-off, or "
-    "the one a likelihood-ratio test picks (docs/analysis.md).",
+    default=None,
+    help="Model of every exponent fit: pure power law, power law with exponential cut-off, or "
+    "the one a likelihood-ratio test picks (default: power_law for gaps, auto for forces; "
+    "docs/analysis.md).",
 )
 @output_options
 def report(results, output, model, out):

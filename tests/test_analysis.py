@@ -14,6 +14,7 @@ from calippso.analysis import (PooledSample, analyze, bucklers, contact_statisti
                                exponent_from_sample, fit_cumulative_power_law, gaps,
                                localized_contacts, normalized_forces, pooled_forces, pooled_gaps,
                                window_scan)
+from calippso.analysis.exponents import MODEL, resolve_models
 from calippso.packing import minimum_image
 from calippso.result import JammingResult
 
@@ -291,6 +292,17 @@ def test_bad_model_is_named():
                                     n_bootstrap=0).model == "power_law"
 
 
+def test_fit_models_by_exponent():
+    assert resolve_models(None) == MODEL
+    assert MODEL["gamma"] == "power_law" and MODEL["theta_e"] == "auto"
+    assert set(resolve_models("cutoff").values()) == {"cutoff"}
+    assert resolve_models({"gamma": "auto"}) == {**MODEL, "gamma": "auto"}
+    with pytest.raises(ValueError, match="model must be one of"):
+        resolve_models("exponential")
+    with pytest.raises(ValueError, match="unknown exponent"):
+        resolve_models({"theta_x": "auto"})
+
+
 def test_window_scan_is_flat_on_a_pure_power_law():
     rng = np.random.default_rng(4)
     sample = PooledSample.from_values(rng.random(100000) ** (1.0 / 1.42311))
@@ -320,6 +332,12 @@ def test_analyze_one_packing(jammed):
         "gamma", "theta_e", "theta_l", "theta"}
     for e in analysis.exponents.values():
         assert e.interval[0] <= e.value <= e.interval[1]
+    for name, e in summary["exponents"].items():
+        assert e["model"] in ("power_law", "cutoff")
+        assert MODEL[name] == "auto" or e["model"] == MODEL[name]
+        assert e["model"] == "power_law" or e["power_law_p_value"] < 0.05
+    least_squares = analyze(jammed, method="lsq", n_bootstrap=0)
+    assert all(e.fit.model == "power_law" for e in least_squares.exponents.values())
 
 
 def test_theta_is_fitted_on_all_forces(jammed):

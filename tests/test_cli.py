@@ -223,6 +223,14 @@ def test_report_and_demo(capfd, tmp_path):
         capfd, "report", tmp_path / "demo" / "jammed.npz", "-o", tmp_path / "again", "--quiet"
     )
     assert code == 0, err
+    code, out, err = _run(capfd, "report", tmp_path / "demo" / "jammed.npz", "-o",
+                          tmp_path / "pure", "--model", "power_law", "--quiet")
+    assert code == 0, err
+    summary = json.loads((tmp_path / "pure" / "summary.json").read_text())
+    assert {e["model"] for e in summary["exponents"].values()} <= {"power_law"}
+    code, out, err = _run(capfd, "report", tmp_path / "demo" / "jammed.npz", "-o",
+                          tmp_path / "bad", "--model", "exponential")
+    assert code != 0 and "exponential" in err
 
 
 def test_console_entry_points():

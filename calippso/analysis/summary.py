@@ -9,7 +9,7 @@ import numpy as np
 
 from ..result import JammingResult
 from ._inputs import as_results
-from .exponents import UPPER, Exponent, exponent_from_sample, window_scan
+from .exponents import UPPER, Exponent, exponent_from_sample, resolve_models, window_scan
 from .forces import DEFAULT_RULE, bucklers, canonical_rule, pooled_forces
 from .gaps import DEFAULT_MAX_GAP, pooled_gaps
 from .sample import PooledSample
@@ -89,7 +89,8 @@ class Analysis:
 
 def analyze(results: JammingResult | Iterable[JammingResult], *,
             max_gap: float = DEFAULT_MAX_GAP, rule: str = DEFAULT_RULE,
-            upper: dict[str, float] | None = None, **fit_options) -> Analysis:
+            upper: dict[str, float] | None = None,
+            model: str | dict[str, str] | None = None, **fit_options) -> Analysis:
     """Analyse one packing, or pool an ensemble of packings of one dimension.
 
     Parameters
@@ -102,9 +103,12 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
     upper : dict, optional
         Upper ends of the fit windows by exponent name (defaults:
         `calippso.analysis.exponents.UPPER`).
+    model : None, str or dict
+        Fit models by exponent (`calippso.analysis.exponents.resolve_models`; defaults:
+        `calippso.analysis.exponents.MODEL`).
     **fit_options
-        Passed to `fit_cumulative_power_law` (min_count, method, model, n_bootstrap,
-        confidence, seed).
+        Passed to `fit_cumulative_power_law` (min_count, method, n_bootstrap, confidence,
+        seed).
 
     Returns
     -------
@@ -115,6 +119,7 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
     items = as_results(results)
     rule = canonical_rule(rule)
     uppers = {**UPPER, **(upper or {})}
+    models = resolve_models(model)
     gaps = pooled_gaps(items, max_gap)
     forces = {kind: pooled_forces(items, kind, rule) for kind in ("all", "extended", "localized")}
     samples = {"gamma": gaps, "theta_e": forces["extended"], "theta_l": forces["localized"],
@@ -127,7 +132,7 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
                                   **scan_options)
         try:
             exponents[name] = exponent_from_sample(name, sample, upper=uppers[name],
-                                                   **fit_options)
+                                                   model=models[name], **fit_options)
         except ValueError as error:
             errors[name] = str(error)
     return Analysis(

@@ -23,8 +23,8 @@ __all__ = ["report", "plot_forces", "plot_gaps", "plot_contact_numbers", "plot_h
 
 def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.PathLike, *,
            title: str | None = None, max_gap: float = DEFAULT_MAX_GAP, rule: str = "bucklers",
-           model: str = "auto", n_bootstrap: int = 1000, seed: int = 0,
-           max_history_figures: int | None = None) -> Path:
+           model: str | dict[str, str] | None = None, n_bootstrap: int = 1000,
+           seed: int = 0, max_history_figures: int | None = None) -> Path:
     """Analyse one jammed packing or pool an ensemble, and write the report into `out_dir`.
 
     Files written: ``summary.json`` (φ, z, rattlers, isostaticity, exponents with intervals,
@@ -43,8 +43,9 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
         Largest gap collected (`calippso.analysis.gaps`).
     rule : {"bucklers", "weakest"}
         Localisation rule (`calippso.analysis.forces.localized_contacts`).
-    model : {"auto", "power_law", "cutoff"}
-        Model of the exponent fits (`calippso.analysis.fits.fit_cumulative_power_law`).
+    model : None, str or dict
+        Models of the exponent fits (`calippso.analysis.exponents.resolve_models`; default:
+        "power_law" for γ, "auto" for the force exponents).
     n_bootstrap : int
         Bootstrap resamples per exponent.
     seed : int
