@@ -34,9 +34,9 @@ distribution): for forces the window top 0.3 is a third of the mean force, for g
 1e-2 lies a decade below h ≈ 0.1, where the regular part of the gap distribution takes over.
 At the bottom of the window the deviation is a finite-size depletion of the smallest values,
 which the cut-off model cannot absorb: on synthetic gaps h^−γ depleted below h₀ (window from
-the 10th smallest value to 1e-2, 49 000 values), the pure power law is off by −0.030
-(h₀ = 1e-5) and −0.10 (1e-4), the test picks the cut-off 95–100 % of the time and that doubles
-the bias (−0.060, −0.19).
+the 10th smallest value to 1e-2, 49 000 values; `bench/fit_models.py --gaps`), the pure power
+law is off by −0.033 (h₀ = 1e-5) and −0.103 (1e-4), the test picks the cut-off every time and
+that doubles the bias (−0.064, −0.191).
 """
 
 from __future__ import annotations
