@@ -32,10 +32,10 @@ x^(α−1) e^(−α x) (mean 1, α = 1.42311) the pure fit over x ≤ 0.1 return
 x ≤ 0.3 α − 0.141 (`bench/fit_models.py`). ``model="cutoff"`` fits the density
 x^(α−1) e^(−λ x) on [a, b] instead, with α and λ both free (λ of either sign): the power law
 with exponential cut-off of Clauset, Shalizi & Newman (their section 5), which absorbs the
-first-order correction, so that α is the exponent of the x → 0 limit. Its likelihood is that of a two-parameter exponential family
-(sufficient statistics mean log x and mean x), concave, maximised by Newton's method with
-trust region (`scipy.optimize.minimize`, "trust-exact"); the normalisation integral is a
-64-point Gauss–Legendre rule in log x. The fitted cumulative is
+first-order correction, so that α is the exponent of the x → 0 limit. Its likelihood is that
+of a two-parameter exponential family (sufficient statistics mean log x and mean x), concave,
+maximised by Newton's method with trust region (`scipy.optimize.minimize`, "trust-exact");
+the normalisation integral is a 64-point Gauss–Legendre rule in log x. The fitted cumulative is
 C(x) = A x^α ₁F₁(α; α + 1; −λ x), which tends to A x^α at small x.
 
 ``model="auto"`` (default) chooses between them by the likelihood-ratio test of the nested
@@ -47,9 +47,9 @@ law otherwise. The p-value is part of the result either way.
 Bootstrap
 ---------
 The interval is the percentile interval of α over `n_bootstrap` resamples, each refitted with
-the same window rule and the model chosen on the full sample. When the sample pools at least `MIN_GROUPS_FOR_PACKING_BOOTSTRAP` packings, whole
-packings are resampled (so that correlations within a packing are respected); otherwise
-individual values are resampled.
+the same window rule and the model chosen on the full sample. When the sample pools at least
+`MIN_GROUPS_FOR_PACKING_BOOTSTRAP` packings, whole packings are resampled (so that
+correlations within a packing are respected); otherwise individual values are resampled.
 """
 
 from __future__ import annotations
@@ -148,8 +148,8 @@ def _power_law_loglik(mean_log: float, alpha: float, la: float, span: float) -> 
     """Mean log-likelihood of density α x^(α−1) / (b^α − a^α) on [a, b], span = ln(b/a)."""
     t = alpha * span
     if abs(t) < 1e-8:
-        log_norm = -math.log(span) - la          # density 1 / (x ln(b/a))
-        return log_norm - mean_log + alpha * (mean_log - la)
+        # density 1 / (x ln(b/a)), with its first order in α
+        return -math.log(span) - mean_log + alpha * (mean_log - la - 0.5 * span)
     # b^α − a^α = a^α expm1(α span)
     return (math.log(abs(alpha)) - alpha * la - math.log(abs(math.expm1(t)))
             + (alpha - 1.0) * mean_log)
@@ -200,8 +200,17 @@ def _window_mle_cutoff(x: np.ndarray, a: float, b: float,
     t_nodes = np.exp(u - lb)
     mean_log, mean_t = float(np.mean(np.log(x))), float(np.mean(x)) / b
 
+    cache: dict[tuple[float, float], tuple[float, np.ndarray, np.ndarray]] = {}
+
     def parts(p: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        alpha, mu = p
+        """Negative mean log-likelihood, its gradient and Hessian (computed once per point)."""
+        key = (float(p[0]), float(p[1]))
+        if key not in cache:
+            cache.clear()
+            cache[key] = _cutoff_parts(*key)
+        return cache[key]
+
+    def _cutoff_parts(alpha: float, mu: float) -> tuple[float, np.ndarray, np.ndarray]:
         # the density in log x is e^(α u − μ t); normalise on the nodes
         e = log_w + alpha * u - mu * t_nodes
         top = float(e.max())
