@@ -140,17 +140,15 @@ def exponent_from_sample(name: str, sample: PooledSample, *, upper: float | None
     upper : float, optional
         Upper end of the fit window (default `UPPER[name]`).
     model : {"auto", "power_law", "cutoff"}, optional
-        Fit model (default `MODEL[name]`; "power_law" with method "lsq").
+        Fit model (default `MODEL[name]`; with method "lsq", "auto" fits the pure power law).
     **fit_options
         Passed to `fit_cumulative_power_law` (min_count, method, n_bootstrap, confidence,
         seed).
     """
     if name not in _FROM_SLOPE:
         raise ValueError(f"name must be one of {tuple(_FROM_SLOPE)}, got {name!r}")
-    if model is None:
-        model = "power_law" if fit_options.get("method") == "lsq" else MODEL[name]
     fit = fit_cumulative_power_law(sample, UPPER[name] if upper is None else upper,
-                                   model=model, **fit_options)
+                                   model=MODEL[name] if model is None else model, **fit_options)
     offset, sign = _FROM_SLOPE[name]
     ends = sorted(offset + sign * s for s in fit.interval)
     return Exponent(name, offset + sign * fit.slope, (ends[0], ends[1]),
