@@ -594,13 +594,22 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
     "the one a likelihood-ratio test picks (default: power_law for gaps, auto for forces; "
     "docs/analysis.md).",
 )
+@click.option(
+    "--rule",
+    type=click.Choice(["bucklers", "weakest", "response"]),
+    default="bucklers",
+    show_default=True,
+    help="Which forces are localised: every force on a buckler, only each buckler's weakest "
+    "force, or the contacts whose opening moves one particle (isostatic packings only; "
+    "docs/analysis.md).",
+)
 @output_options
-def report(results, output, model, out):
+def report(results, output, model, rule, out):
     """Analyse one or more jammed results (.npz/.h5) and write a report to a folder."""
     from .io import read_result
 
     loaded = [read_result(path) for path in results]
-    page = make_report(loaded, output, model=model)
+    page = make_report(loaded, output, model=model, rule=rule)
     return (
         {"command": "report", "results": [str(p) for p in results], "report": str(page)},
         f"report of {len(loaded)} packing(s) -> {page}",

@@ -15,6 +15,8 @@ from calippso.analysis import (PooledSample, analyze, bucklers, contact_statisti
                                localized_contacts, normalized_forces, pooled_forces, pooled_gaps,
                                window_scan)
 from calippso.analysis.exponents import MODEL, resolve_models
+from calippso.analysis.forces import RESPONSE_THRESHOLD, split_forces
+from calippso.analysis.response import opening_response
 from calippso.packing import minimum_image
 from calippso.result import JammingResult
 
@@ -176,6 +178,70 @@ def test_weakest_rule_keeps_the_weakest_force_of_each_buckler(jammed):
     extended = pooled_forces(jammed, "extended", rule="weakest")
     assert len(local) == weakest.sum()
     assert len(local) + len(extended) == jammed.n_contacts
+
+
+def _opening_by_least_squares(result: JammingResult, contact: int) -> np.ndarray:
+    """Displacements (N_s, d) of the minimum-norm response to opening `contact` by 1."""
+    from calippso.contacts import equilibrium_matrix
+
+    stable = ~result.rattlers
+    index = np.cumsum(stable) - 1
+    i, j = index[result.contacts[:, 0]], index[result.contacts[:, 1]]
+    normals = result.contact_vectors / np.linalg.norm(result.contact_vectors, axis=1)[:, None]
+    sigma = 0.5 * result.packing.diameters[result.contacts].sum(axis=1)
+    compatibility = equilibrium_matrix(int(stable.sum()), i, j, normals).T.toarray()
+    matrix = np.column_stack([compatibility, -sigma])
+    opening = np.zeros(result.n_contacts)
+    opening[contact] = 1.0
+    solution = np.linalg.lstsq(matrix, opening, rcond=None)[0]
+    return solution[:-1].reshape(-1, result.d)
+
+
+def test_opening_response_matches_least_squares_and_carries_the_forces(jammed):
+    response = opening_response(jammed)
+    m = jammed.n_contacts
+    assert response.share.shape == response.mover.shape == response.inflation.shape == (m,)
+    assert np.all((response.share > 0) & (response.share <= 1 + 1e-12))
+    # The inflation per unit opening is -f_k / sum(f sigma): the force is what opening costs.
+    sigma = 0.5 * jammed.packing.diameters[jammed.contacts].sum(axis=1)
+    np.testing.assert_allclose(-response.inflation * np.sum(jammed.forces * sigma),
+                               jammed.forces, rtol=1e-8)
+    stable = np.flatnonzero(~jammed.rattlers)
+    for contact in (0, m // 2, int(np.argmax(response.share)), int(np.argmin(response.share))):
+        squared = (_opening_by_least_squares(jammed, contact) ** 2).sum(axis=1)
+        assert response.share[contact] == pytest.approx(squared.max() / squared.sum(), rel=1e-6)
+        assert response.mover[contact] == stable[np.argmax(squared)]
+
+
+def test_localised_responses_move_a_particle_next_to_the_opened_contact(jammed):
+    """Opening a localised contact moves mostly one of its own ends, most often a buckler."""
+    response = opening_response(jammed)
+    localized = localized_contacts(jammed, "response")
+    np.testing.assert_array_equal(localized, response.localized(RESPONSE_THRESHOLD))
+    assert 0 < localized.sum() < jammed.n_contacts / 10
+    movers = response.mover[localized]
+    ends = jammed.contacts[localized]
+    is_end = (movers == ends[:, 0]) | (movers == ends[:, 1])
+    assert is_end.mean() >= 0.75
+    for mover, (a, b) in zip(movers[~is_end], ends[~is_end]):  # else a neighbour of an end
+        touching = jammed.contacts[(jammed.contacts == mover).any(axis=1)].ravel()
+        assert a in touching or b in touching
+    assert np.mean(bucklers(jammed)[movers]) > 0.5
+    # localised forces are weak ones
+    assert np.median(jammed.forces[localized]) < 0.5 * np.median(jammed.forces)
+    split = split_forces(jammed, "response")
+    assert len(split["localized"]) == localized.sum()
+    assert len(split["localized"]) + len(split["extended"]) == len(split["all"])
+
+
+def test_opening_response_needs_an_isostatic_packing(jammed):
+    from dataclasses import replace
+
+    hypostatic = replace(jammed, contacts=jammed.contacts[1:], forces=jammed.forces[1:])
+    with pytest.raises(ValueError, match="isostatic"):
+        opening_response(hypostatic)
+    with pytest.raises(ValueError, match="threshold"):
+        opening_response(jammed).localized(1.5)
 
 
 # --- fits ------------------------------------------------------------------------------------

@@ -45,8 +45,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from ..result import JammingResult
+from ._inputs import as_results
 from .fits import FIT_MODELS, PowerLawFit, fit_cumulative_power_law
-from .forces import DEFAULT_RULE, pooled_forces
+from .forces import DEFAULT_RULE, split_forces
 from .gaps import DEFAULT_MAX_GAP, pooled_gaps
 from .sample import PooledSample
 
@@ -167,7 +168,7 @@ def critical_exponents(results: JammingResult | Iterable[JammingResult], *,
     results : JammingResult or iterable of JammingResult
     max_gap : float
         Largest gap collected (must exceed the gap window's upper end).
-    rule : {"bucklers", "weakest"}
+    rule : {"bucklers", "weakest", "response"}
         Localisation rule (`calippso.analysis.forces.localized_contacts`).
     upper : dict, optional
         Upper ends of the fit windows, by exponent name (defaults: `UPPER`).
@@ -186,12 +187,12 @@ def critical_exponents(results: JammingResult | Iterable[JammingResult], *,
     ValueError
         Too few small gaps or forces for a fit (pool more packings).
     """
+    results = as_results(results)
     uppers = {**UPPER, **(upper or {})}
     models = resolve_models(model)
-    samples = {"gamma": pooled_gaps(results, max_gap),
-               "theta_e": pooled_forces(results, "extended", rule),
-               "theta_l": pooled_forces(results, "localized", rule),
-               "theta": pooled_forces(results, "all", rule)}
+    forces = split_forces(results, rule)
+    samples = {"gamma": pooled_gaps(results, max_gap), "theta_e": forces["extended"],
+               "theta_l": forces["localized"], "theta": forces["all"]}
     return {name: exponent_from_sample(name, sample, upper=uppers[name], model=models[name],
                                        **fit_options)
             for name, sample in samples.items()}

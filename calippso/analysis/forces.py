@@ -13,6 +13,11 @@ one hyperplane through the centre, the one loaded by the buckling motion; only t
 the localised distribution matters for θ_ℓ, and it is made of these forces. Rule "weakest"
 keeps only that contact of each buckler as localised (the others go to the extended set), for
 comparison.
+
+Rule "response" uses the criterion of Lerner, Düring & Wyart directly: a contact is localised
+when opening it (all other contacts kept closed) moves essentially one particle, i.e. when one
+particle carries more than `RESPONSE_THRESHOLD` of the squared displacement of the response
+(`calippso.analysis.response`). It needs isostatic packings.
 """
 
 from __future__ import annotations
@@ -25,12 +30,15 @@ from ..result import JammingResult
 from ._inputs import as_results
 from .sample import PooledSample
 
-__all__ = ["DEFAULT_RULE", "LOCALIZATION_RULES", "FORCE_KINDS", "bucklers", "canonical_rule",
-           "localized_contacts",
-           "normalized_forces", "pooled_forces"]
+__all__ = ["DEFAULT_RULE", "LOCALIZATION_RULES", "FORCE_KINDS", "RESPONSE_THRESHOLD", "bucklers",
+           "canonical_rule", "localized_contacts", "normalized_forces", "pooled_forces",
+           "split_forces"]
 
 #: Rules accepted by `localized_contacts`.
-LOCALIZATION_RULES = ("bucklers", "weakest")
+LOCALIZATION_RULES = ("bucklers", "weakest", "response")
+#: Rule "response": a contact is localised when one particle carries more than this share of
+#: the squared displacement of its opening response.
+RESPONSE_THRESHOLD = 0.5
 #: Default localisation rule.
 DEFAULT_RULE = "bucklers"
 #: Former name of rule "bucklers", still accepted.
@@ -71,11 +79,13 @@ def localized_contacts(result: JammingResult, rule: str = DEFAULT_RULE) -> np.nd
     Parameters
     ----------
     result : JammingResult
-    rule : {"bucklers", "weakest"}
+    rule : {"bucklers", "weakest", "response"}
         "bucklers" (default): every contact with a buckler at either end, the forces acting on
         bucklers (Charbonneau et al. 2015). "weakest": only the weakest contact of every
         buckler, the one that the buckling excitation loads (see the module notes); a contact
-        can be the weakest of both its particles, it is counted once.
+        can be the weakest of both its particles, it is counted once. "response": the contacts
+        whose opening response is localised on one particle (share above
+        `RESPONSE_THRESHOLD`; isostatic packings only).
 
     Returns
     -------
@@ -83,6 +93,10 @@ def localized_contacts(result: JammingResult, rule: str = DEFAULT_RULE) -> np.nd
         True for localised contacts, aligned with `result.contacts`.
     """
     rule = canonical_rule(rule)
+    if rule == "response":
+        from .response import opening_response
+
+        return opening_response(result).localized(RESPONSE_THRESHOLD)
     is_buckler = bucklers(result)
     contacts = result.contacts
     m = contacts.shape[0]
@@ -99,9 +113,40 @@ def localized_contacts(result: JammingResult, rule: str = DEFAULT_RULE) -> np.nd
     return localized
 
 
+def split_forces(results: JammingResult | Iterable[JammingResult],
+                 rule: str = DEFAULT_RULE) -> dict[str, PooledSample]:
+    """All, localised and extended forces, normalised by the mean of each packing, pooled.
+
+    Each packing's contacts are classified once (rule "response" solves a linear system per
+    packing).
+
+    Parameters
+    ----------
+    results : JammingResult or iterable of JammingResult
+    rule : {"bucklers", "weakest", "response"}
+        See `localized_contacts`.
+
+    Returns
+    -------
+    dict
+        {"all", "localized", "extended"} → PooledSample, each normalised by its own number of
+        forces, so that its cumulative is the distribution function G(f) of that kind.
+    """
+    rule = canonical_rule(rule)
+    parts: dict[str, list[np.ndarray]] = {kind: [] for kind in FORCE_KINDS}
+    for result in as_results(results):
+        forces = normalized_forces(result)
+        localized = localized_contacts(result, rule)
+        parts["all"].append(forces)
+        parts["localized"].append(forces[localized])
+        parts["extended"].append(forces[~localized])
+    return {kind: PooledSample.concatenate([(part, part.size) for part in kind_parts])
+            for kind, kind_parts in parts.items()}
+
+
 def pooled_forces(results: JammingResult | Iterable[JammingResult], kind: str = "all",
                   rule: str = DEFAULT_RULE) -> PooledSample:
-    """Forces normalised by their mean in each packing, pooled.
+    """Forces of one kind, normalised by their mean in each packing, pooled.
 
     Parameters
     ----------
@@ -109,7 +154,7 @@ def pooled_forces(results: JammingResult | Iterable[JammingResult], kind: str = 
     kind : {"all", "localized", "extended"}
         Which forces: every contact, the localised ones (`localized_contacts` with `rule`), or
         the others.
-    rule : {"bucklers", "weakest"}
+    rule : {"bucklers", "weakest", "response"}
         See `localized_contacts`.
 
     Returns
@@ -120,11 +165,7 @@ def pooled_forces(results: JammingResult | Iterable[JammingResult], kind: str = 
     """
     if kind not in FORCE_KINDS:
         raise ValueError(f"kind must be one of {FORCE_KINDS}, got {kind!r}")
-    parts = []
-    for result in as_results(results):
-        forces = normalized_forces(result)
-        if kind != "all":
-            localized = localized_contacts(result, rule)
-            forces = forces[localized if kind == "localized" else ~localized]
-        parts.append(forces)
-    return PooledSample.concatenate([(part, part.size) for part in parts])
+    if kind == "all":
+        parts = [normalized_forces(result) for result in as_results(results)]
+        return PooledSample.concatenate([(part, part.size) for part in parts])
+    return split_forces(results, rule)[kind]

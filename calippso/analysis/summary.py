@@ -10,7 +10,7 @@ import numpy as np
 from ..result import JammingResult
 from ._inputs import as_results
 from .exponents import UPPER, Exponent, exponent_from_sample, resolve_models, window_scan
-from .forces import DEFAULT_RULE, bucklers, canonical_rule, pooled_forces
+from .forces import DEFAULT_RULE, bucklers, canonical_rule, split_forces
 from .gaps import DEFAULT_MAX_GAP, pooled_gaps
 from .sample import PooledSample
 from .structure import ContactStatistics, contact_statistics
@@ -98,7 +98,7 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
     results : JammingResult or iterable of JammingResult
     max_gap : float
         Largest gap h collected.
-    rule : {"bucklers", "weakest"}
+    rule : {"bucklers", "weakest", "response"}
         Localisation rule (`calippso.analysis.forces.localized_contacts`).
     upper : dict, optional
         Upper ends of the fit windows by exponent name (defaults:
@@ -121,7 +121,7 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
     uppers = {**UPPER, **(upper or {})}
     models = resolve_models(model)
     gaps = pooled_gaps(items, max_gap)
-    forces = {kind: pooled_forces(items, kind, rule) for kind in ("all", "extended", "localized")}
+    forces = split_forces(items, rule)
     samples = {"gamma": gaps, "theta_e": forces["extended"], "theta_l": forces["localized"],
                "theta": forces["all"]}
     exponents, errors, scans = {}, {}, {}

@@ -41,7 +41,7 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
         Page title (default: "Jammed packings, d = …").
     max_gap : float
         Largest gap collected (`calippso.analysis.gaps`).
-    rule : {"bucklers", "weakest"}
+    rule : {"bucklers", "weakest", "response"}
         Localisation rule (`calippso.analysis.forces.localized_contacts`).
     model : None, str or dict
         Models of the exponent fits (`calippso.analysis.exponents.resolve_models`; default:

@@ -55,7 +55,7 @@ def plot_forces(analysis: Analysis, path: Path) -> Path:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     styles = {"all": ("0.6", "all"), "extended": ("C0", "extended"),
-              "localized": ("C3", "localised (bucklers)")}
+              "localized": ("C3", f"localised (rule {analysis.rule})")}
     for kind, (color, label) in styles.items():
         sample = analysis.forces[kind]
         _cumulative(ax, sample, color=color, lw=1.2, label=f"{label} ({len(sample)})")
