@@ -229,6 +229,11 @@ def test_report_and_demo(capfd, tmp_path):
     summary = json.loads((tmp_path / "pure" / "summary.json").read_text())
     assert {e["model"] for e in summary["exponents"].values()} <= {"power_law"}
     code, out, err = _run(capfd, "report", tmp_path / "demo" / "jammed.npz", "-o",
+                          tmp_path / "response", "--rule", "response", "--quiet")
+    assert code == 0, err
+    summary = json.loads((tmp_path / "response" / "summary.json").read_text())
+    assert summary["localization_rule"] == "response"
+    code, out, err = _run(capfd, "report", tmp_path / "demo" / "jammed.npz", "-o",
                           tmp_path / "bad", "--model", "exponential")
     assert code != 0 and "exponential" in err
 
