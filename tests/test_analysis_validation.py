@@ -6,7 +6,7 @@ then 1e-4 up to 1e7, so that each LS end state is a jamming point (up to φ_J/φ
 and the jammed packing is the one LS reached (docs/howto/start-configurations.md):
 
 * "d3_slow_end": d = 3, N = 1024, 34 packings;
-* "d4_slow_end": d = 4, N = 512, 20 packings, with looser bands.
+* "d4_slow_end": d = 4, N = 512, 30 packings, with looser bands.
 
 Bands: γ and θ_e within 0.05 of the references and θ_ℓ within 0.1 in d = 3; 0.08, 0.08 and
 0.15 in d = 4. θ, the exponent of all forces, has θ_ℓ's reference and band. Each (ensemble,
@@ -43,12 +43,12 @@ BANDS_D3 = {"gamma": 0.05, "theta_e": 0.05, "theta_l": 0.1, "theta": 0.1}
 BANDS_D4 = {"gamma": 0.08, "theta_e": 0.08, "theta_l": 0.15, "theta": 0.15}
 #: name → (d, N, seeds, bands by exponent)
 CASES = {"d3_slow_end": (3, 1024, range(34), BANDS_D3),
-         "d4_slow_end": (4, 512, range(100, 120), BANDS_D4)}
+         "d4_slow_end": (4, 512, range(100, 130), BANDS_D4)}
 
 #: (ensemble, exponent) → measured value, for the bands that are missed (docs/analysis.md).
 MISSED_BANDS: dict[tuple[str, str], str] = {
     ("d3_slow_end", "theta_l"): "θ_ℓ = 0.022 [−0.043, 0.092]",
-    ("d4_slow_end", "theta_e"): "θ_e = 0.312 [0.281, 0.344]",
+    ("d4_slow_end", "theta_e"): "θ_e = 0.314 [0.284, 0.346]",
 }
 
 

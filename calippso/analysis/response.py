@@ -33,6 +33,9 @@ __all__ = ["OpeningResponse", "opening_response"]
 
 #: Right-hand sides solved at once (memory: (d N_s + 1) × this many float64).
 _BATCH = 256
+#: Up to this many unknowns (d N_s + 1) the system is factorised densely with LAPACK (at most
+#: 290 MB); the sparse LU fills in nearly completely on these networks and is slower there.
+_DENSE_LIMIT = 6000
 
 
 @dataclass(frozen=True)
@@ -91,6 +94,31 @@ def _response_matrix(result: JammingResult, stable_index: np.ndarray, n_stable: 
     return csc_matrix((values, (rows, cols)), shape=(m + d, d * n_stable + 1))
 
 
+def _factorised(matrix):
+    """A function solving `matrix` x = b for a block b, from one LU factorisation."""
+    from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+    from scipy.sparse.linalg import splu
+
+    floppy = "the contact network has a floppy mode (singular opening equations)"
+    if matrix.shape[0] <= _DENSE_LIMIT:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", LinAlgWarning)
+            try:
+                factor = lu_factor(matrix.toarray(), check_finite=False)
+            except (LinAlgWarning, np.linalg.LinAlgError):
+                raise ValueError(floppy) from None
+        if np.any(np.diag(factor[0]) == 0):
+            raise ValueError(floppy)
+        return lambda block: lu_solve(factor, block, check_finite=False)
+    try:
+        factor = splu(matrix)
+    except RuntimeError:  # "Factor is exactly singular"
+        raise ValueError(floppy) from None
+    return factor.solve
+
+
 def opening_response(result: JammingResult) -> OpeningResponse:
     """The response to opening each contact of an isostatic packing (module notes).
 
@@ -111,11 +139,9 @@ def opening_response(result: JammingResult) -> OpeningResponse:
 
     Notes
     -----
-    One sparse LU factorisation of the (M + d)-square matrix, then M solves in batches: about
-    2 s for N = 1024 in d = 3.
+    One LU factorisation of the (M + d)-square matrix (dense LAPACK up to 6000 unknowns,
+    SuperLU above), then M solves in batches.
     """
-    from scipy.sparse.linalg import splu
-
     if not result.isostatic:
         raise ValueError(
             f"the opening response needs an isostatic packing; this one has isostaticity gap "
@@ -126,11 +152,7 @@ def opening_response(result: JammingResult) -> OpeningResponse:
     stable_index = np.full(result.packing.n, -1, dtype=np.int64)
     stable_index[stable] = np.arange(n_stable)
     stable_particles = np.flatnonzero(stable)
-    matrix = _response_matrix(result, stable_index, n_stable)
-    try:
-        factor = splu(matrix)
-    except RuntimeError as error:  # "Factor is exactly singular"
-        raise ValueError(f"the contact network has a floppy mode: {error}") from None
+    solve = _factorised(_response_matrix(result, stable_index, n_stable))
     m = result.n_contacts
     share = np.empty(m)
     mover = np.empty(m, dtype=np.int64)
@@ -139,7 +161,7 @@ def opening_response(result: JammingResult) -> OpeningResponse:
         batch = np.arange(start, min(m, start + _BATCH))
         openings = np.zeros((m + d, batch.size))
         openings[batch, np.arange(batch.size)] = 1.0
-        solution = factor.solve(openings)
+        solution = solve(openings)
         if not np.all(np.isfinite(solution)):
             raise ValueError("the contact network has a floppy mode (singular opening equations)")
         squared = (solution[:-1].reshape(n_stable, d, batch.size) ** 2).sum(axis=1)
