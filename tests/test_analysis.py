@@ -234,12 +234,16 @@ def test_localised_responses_move_a_particle_next_to_the_opened_contact(jammed):
     assert len(split["localized"]) + len(split["extended"]) == len(split["all"])
 
 
-def test_opening_response_needs_an_isostatic_packing(jammed):
+def test_opening_response_needs_an_isostatic_rigid_packing(jammed):
     from dataclasses import replace
 
     hypostatic = replace(jammed, contacts=jammed.contacts[1:], forces=jammed.forces[1:])
     with pytest.raises(ValueError, match="isostatic"):
         opening_response(hypostatic)
+    contacts = jammed.contacts.copy()
+    contacts[0] = contacts[1]                  # right count, one direction left unconstrained
+    with pytest.raises(ValueError, match="floppy mode"):
+        opening_response(replace(jammed, contacts=contacts))
     with pytest.raises(ValueError, match="threshold"):
         opening_response(jammed).localized(1.5)
 

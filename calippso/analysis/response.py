@@ -95,22 +95,25 @@ def _response_matrix(result: JammingResult, stable_index: np.ndarray, n_stable: 
 
 
 def _factorised(matrix):
-    """A function solving `matrix` x = b for a block b, from one LU factorisation."""
-    from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+    """A function solving `matrix` x = b for a block b, from one LU factorisation.
+
+    Raises ValueError when the matrix is singular to working precision (a floppy mode; the
+    dense path checks LAPACK's estimate of the reciprocal condition number).
+    """
+    from scipy.linalg import lu_factor, lu_solve
+    from scipy.linalg.lapack import dgecon
     from scipy.sparse.linalg import splu
 
     floppy = "the contact network has a floppy mode (singular opening equations)"
-    if matrix.shape[0] <= _DENSE_LIMIT:
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", LinAlgWarning)
-            try:
-                factor = lu_factor(matrix.toarray(), check_finite=False)
-            except (LinAlgWarning, np.linalg.LinAlgError):
-                raise ValueError(floppy) from None
-        if np.any(np.diag(factor[0]) == 0):
-            raise ValueError(floppy)
+    n = matrix.shape[0]
+    if n <= _DENSE_LIMIT:
+        dense = matrix.toarray()
+        one_norm = float(np.abs(dense).sum(axis=0).max())
+        with np.errstate(all="ignore"):
+            factor = lu_factor(dense, check_finite=False, overwrite_a=True)
+        rcond, _ = dgecon(factor[0], one_norm, norm="1")
+        if not rcond > n * np.finfo(np.float64).eps:
+            raise ValueError(f"{floppy}; reciprocal condition number {rcond:.1e}")
         return lambda block: lu_solve(factor, block, check_finite=False)
     try:
         factor = splu(matrix)
