@@ -16,7 +16,7 @@ measured value (`MISSED_BANDS`). Run with
     nice -n 10 python -m pytest -m slow tests/test_analysis_validation.py
 
 (about two hours on two cores when the packings have to be made, LS taking 180-280 s per
-packing in either dimension; about four minutes when they are already there).
+packing in either dimension; under a minute when they are already there).
 Set CALIPPSO_VALIDATION_DIR to keep the jammed packings (one subfolder per ensemble) and the
 reports written from them between runs; without it they go to a temporary folder.
 """
