@@ -5,11 +5,12 @@ rules "bucklers" (every force on a buckler), "weakest" (each buckler's weakest f
 "response" at several thresholds (contacts whose opening response puts more than that share of
 its squared displacement on one particle; docs/analysis.md, Definitions), then fits θ_ℓ and θ_e
 with the default windows and models (1000 bootstrap resamples of the packings, seed 0). It
-prints the time of the opening response per packing, the shares by class of contact, and one
+prints the time of the opening response per packing (with ``--sparse``, also the time with
+SuperLU instead of the dense LAPACK factorisation), the shares by class of contact, and one
 row per rule. Run from the repository root:
 
     python bench/localization_rules.py folder/*.npz
-    python bench/localization_rules.py folder/*.npz --thresholds 0.3 0.5 0.7
+    python bench/localization_rules.py folder/*.npz --thresholds 0.5 --sparse
 """
 
 from __future__ import annotations
@@ -31,6 +32,10 @@ def _pooled(parts: list[np.ndarray]) -> PooledSample:
     return PooledSample.concatenate([(part, part.size) for part in parts])
 
 
+def _times(times: list[float]) -> str:
+    return f"{np.median(times):.2f} (median; {min(times):.2f}-{max(times):.2f})"
+
+
 def _exponent(name: str, parts: list[np.ndarray], n_bootstrap: int) -> str:
     try:
         e = exponent_from_sample(name, _pooled(parts), n_bootstrap=n_bootstrap, seed=0)
@@ -45,6 +50,8 @@ def main() -> None:
     parser.add_argument("--thresholds", type=float, nargs="+",
                         default=[0.3, RESPONSE_THRESHOLD, 0.7])
     parser.add_argument("--bootstrap", type=int, default=1000)
+    parser.add_argument("--sparse", action="store_true",
+                        help="also time the response with the sparse (SuperLU) factorisation")
     args = parser.parse_args()
 
     results = [read_result(path) for path in args.results]
@@ -61,7 +68,14 @@ def main() -> None:
 
     n = results[0].packing.n
     print(f"{len(results)} packings, d = {results[0].d}, N = {n}; opening response "
-          f"{np.median(times):.2f} s per packing (median; {min(times):.2f}-{max(times):.2f})")
+          f"{_times(times)} s per packing")
+    if args.sparse:
+        sparse_times = []
+        for result in results:
+            start = time.perf_counter()
+            opening_response(result, factorization="sparse")
+            sparse_times.append(time.perf_counter() - start)
+        print(f"with SuperLU instead: {_times(sparse_times)} s per packing")
     print("\nshare of the opening response on the particle that moves most, by class of contact")
     print("| contacts | count | median share | share > 0.5 |")
     print("|---|---|---|---|")

@@ -211,6 +211,9 @@ def test_opening_response_matches_least_squares_and_carries_the_forces(jammed):
         squared = (_opening_by_least_squares(jammed, contact) ** 2).sum(axis=1)
         assert response.share[contact] == pytest.approx(squared.max() / squared.sum(), rel=1e-6)
         assert response.mover[contact] == stable[np.argmax(squared)]
+    sparse = opening_response(jammed, factorization="sparse")
+    np.testing.assert_allclose(sparse.share, response.share, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(sparse.inflation, response.inflation, rtol=1e-8)
 
 
 def test_localised_responses_move_a_particle_next_to_the_opened_contact(jammed):
@@ -246,6 +249,8 @@ def test_opening_response_needs_an_isostatic_rigid_packing(jammed):
         opening_response(replace(jammed, contacts=contacts))
     with pytest.raises(ValueError, match="threshold"):
         opening_response(jammed).localized(1.5)
+    with pytest.raises(ValueError, match="factorization"):
+        opening_response(jammed, factorization="qr")
 
 
 # --- fits ------------------------------------------------------------------------------------

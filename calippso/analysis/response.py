@@ -29,13 +29,17 @@ import numpy as np
 
 from ..result import JammingResult
 
-__all__ = ["OpeningResponse", "opening_response"]
+__all__ = ["FACTORIZATIONS", "OpeningResponse", "opening_response"]
 
 #: Right-hand sides solved at once (memory: (d N_s + 1) × this many float64).
 _BATCH = 256
-#: Up to this many unknowns (d N_s + 1) the system is factorised densely with LAPACK (at most
-#: 290 MB); the sparse LU fills in nearly completely on these networks and is slower there.
+#: With factorization="auto", up to this many unknowns (d N_s + 1) the system is factorised
+#: densely with LAPACK (at most 290 MB); SuperLU fills in nearly completely on these networks
+#: and is slower there (`bench/localization_rules.py --sparse` times both).
 _DENSE_LIMIT = 6000
+#: Values of `opening_response(factorization=...)`.
+FACTORIZATIONS = ("auto", "dense", "sparse")
+_FLOPPY = "the contact network has a floppy mode (singular opening equations)"
 
 
 @dataclass(frozen=True)
@@ -94,7 +98,7 @@ def _response_matrix(result: JammingResult, stable_index: np.ndarray, n_stable: 
     return csc_matrix((values, (rows, cols)), shape=(m + d, d * n_stable + 1))
 
 
-def _factorised(matrix):
+def _factorised(matrix, dense: bool):
     """A function solving `matrix` x = b for a block b, from one LU factorisation.
 
     Raises ValueError when the matrix is singular to working precision (a floppy mode; the
@@ -104,31 +108,35 @@ def _factorised(matrix):
     from scipy.linalg.lapack import dgecon
     from scipy.sparse.linalg import splu
 
-    floppy = "the contact network has a floppy mode (singular opening equations)"
-    n = matrix.shape[0]
-    if n <= _DENSE_LIMIT:
-        dense = matrix.toarray()
-        one_norm = float(np.abs(dense).sum(axis=0).max())
+    if dense:
+        array = matrix.toarray()
+        one_norm = float(np.abs(array).sum(axis=0).max())
         with np.errstate(all="ignore"):
-            factor = lu_factor(dense, check_finite=False, overwrite_a=True)
+            factor = lu_factor(array, check_finite=False, overwrite_a=True)
         rcond, _ = dgecon(factor[0], one_norm, norm="1")
-        if not rcond > n * np.finfo(np.float64).eps:
-            raise ValueError(f"{floppy}; reciprocal condition number {rcond:.1e}")
+        if not rcond > matrix.shape[0] * np.finfo(np.float64).eps:
+            raise ValueError(f"{_FLOPPY}; reciprocal condition number {rcond:.1e}")
         return lambda block: lu_solve(factor, block, check_finite=False)
     try:
         factor = splu(matrix)
     except RuntimeError:  # "Factor is exactly singular"
-        raise ValueError(floppy) from None
+        raise ValueError(_FLOPPY) from None
     return factor.solve
 
 
-def opening_response(result: JammingResult) -> OpeningResponse:
+def opening_response(result: JammingResult, *, factorization: str = "auto") -> OpeningResponse:
     """The response to opening each contact of an isostatic packing (module notes).
 
     Parameters
     ----------
     result : JammingResult
         Isostatic: N_c = d (N_s − 1) + 1.
+    factorization : {"auto", "dense", "sparse"}
+        LU of the opening equations: LAPACK on the dense matrix, SciPy's SuperLU on the
+        sparse one, or ("auto") dense up to 6000 unknowns and sparse above. Both give the same
+        response; dense is faster at these sizes, sparse needs less memory for large N. Only
+        the dense path detects a singular system that round-off keeps from being exactly
+        singular.
 
     Returns
     -------
@@ -142,9 +150,10 @@ def opening_response(result: JammingResult) -> OpeningResponse:
 
     Notes
     -----
-    One LU factorisation of the (M + d)-square matrix (dense LAPACK up to 6000 unknowns,
-    SuperLU above), then M solves in batches.
+    One LU factorisation of the (M + d)-square matrix, then M solves in batches.
     """
+    if factorization not in FACTORIZATIONS:
+        raise ValueError(f"factorization must be one of {FACTORIZATIONS}, got {factorization!r}")
     if not result.isostatic:
         raise ValueError(
             f"the opening response needs an isostatic packing; this one has isostaticity gap "
@@ -155,7 +164,10 @@ def opening_response(result: JammingResult) -> OpeningResponse:
     stable_index = np.full(result.packing.n, -1, dtype=np.int64)
     stable_index[stable] = np.arange(n_stable)
     stable_particles = np.flatnonzero(stable)
-    solve = _factorised(_response_matrix(result, stable_index, n_stable))
+    matrix = _response_matrix(result, stable_index, n_stable)
+    dense = factorization == "dense" or (factorization == "auto"
+                                         and matrix.shape[0] <= _DENSE_LIMIT)
+    solve = _factorised(matrix, dense)
     m = result.n_contacts
     share = np.empty(m)
     mover = np.empty(m, dtype=np.int64)
@@ -166,7 +178,7 @@ def opening_response(result: JammingResult) -> OpeningResponse:
         openings[batch, np.arange(batch.size)] = 1.0
         solution = solve(openings)
         if not np.all(np.isfinite(solution)):
-            raise ValueError("the contact network has a floppy mode (singular opening equations)")
+            raise ValueError(_FLOPPY)
         squared = (solution[:-1].reshape(n_stable, d, batch.size) ** 2).sum(axis=1)
         largest = squared.argmax(axis=0)
         share[batch] = squared[largest, np.arange(batch.size)] / squared.sum(axis=0)
