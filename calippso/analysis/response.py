@@ -34,8 +34,8 @@ __all__ = ["FACTORIZATIONS", "OpeningResponse", "opening_response"]
 #: Right-hand sides solved at once (memory: (d N_s + 1) × this many float64).
 _BATCH = 256
 #: With factorization="auto", up to this many unknowns (d N_s + 1) the system is factorised
-#: densely with LAPACK (at most 290 MB); SuperLU fills in nearly completely on these networks
-#: and is slower there (`bench/localization_rules.py --sparse` times both).
+#: densely with LAPACK (at most 290 MB), which is faster than SuperLU at these sizes and alone
+#: detects a near-singular system (`bench/localization_rules.py --sparse` times both).
 _DENSE_LIMIT = 6000
 #: Values of `opening_response(factorization=...)`.
 FACTORIZATIONS = ("auto", "dense", "sparse")
