@@ -211,9 +211,11 @@ def test_opening_response_matches_least_squares_and_carries_the_forces(jammed):
         squared = (_opening_by_least_squares(jammed, contact) ** 2).sum(axis=1)
         assert response.share[contact] == pytest.approx(squared.max() / squared.sum(), rel=1e-6)
         assert response.mover[contact] == stable[np.argmax(squared)]
+    assert response.reciprocal_condition > 1e3 * response.share.size * np.finfo(float).eps
     sparse = opening_response(jammed, factorization="sparse")
     np.testing.assert_allclose(sparse.share, response.share, rtol=1e-8, atol=1e-12)
     np.testing.assert_allclose(sparse.inflation, response.inflation, rtol=1e-8)
+    assert np.isnan(sparse.reciprocal_condition)
 
 
 def test_localised_responses_move_a_particle_next_to_the_opened_contact(jammed):

@@ -56,11 +56,16 @@ class OpeningResponse:
     inflation : ndarray, shape (M,)
         Relative change ε of the diameters per unit opening of the contact (negative,
         proportional to the contact force).
+    reciprocal_condition : float
+        LAPACK's estimate of the reciprocal 1-norm condition number of the opening equations
+        (dense factorisation; NaN with the sparse one). Systems below (number of unknowns) ×
+        machine epsilon are refused as floppy.
     """
 
     share: np.ndarray
     mover: np.ndarray
     inflation: np.ndarray
+    reciprocal_condition: float = float("nan")
 
     def localized(self, threshold: float = 0.5) -> np.ndarray:
         """Contacts whose response puts more than `threshold` of its weight on one particle.
@@ -99,7 +104,8 @@ def _response_matrix(result: JammingResult, stable_index: np.ndarray, n_stable: 
 
 
 def _factorised(matrix, dense: bool):
-    """A function solving `matrix` x = b for a block b, from one LU factorisation.
+    """A function solving `matrix` x = b for a block b, from one LU factorisation, and the
+    reciprocal condition number (NaN on the sparse path).
 
     Raises ValueError when the matrix is singular to working precision (a floppy mode; the
     dense path checks LAPACK's estimate of the reciprocal condition number).
@@ -116,12 +122,12 @@ def _factorised(matrix, dense: bool):
         rcond, _ = dgecon(factor[0], one_norm, norm="1")
         if not rcond > matrix.shape[0] * np.finfo(np.float64).eps:
             raise ValueError(f"{_FLOPPY}; reciprocal condition number {rcond:.1e}")
-        return lambda block: lu_solve(factor, block, check_finite=False)
+        return (lambda block: lu_solve(factor, block, check_finite=False)), float(rcond)
     try:
         factor = splu(matrix)
     except RuntimeError:  # "Factor is exactly singular"
         raise ValueError(_FLOPPY) from None
-    return factor.solve
+    return factor.solve, float("nan")
 
 
 def opening_response(result: JammingResult, *, factorization: str = "auto") -> OpeningResponse:
@@ -167,7 +173,7 @@ def opening_response(result: JammingResult, *, factorization: str = "auto") -> O
     matrix = _response_matrix(result, stable_index, n_stable)
     dense = factorization == "dense" or (factorization == "auto"
                                          and matrix.shape[0] <= _DENSE_LIMIT)
-    solve = _factorised(matrix, dense)
+    solve, reciprocal_condition = _factorised(matrix, dense)
     m = result.n_contacts
     share = np.empty(m)
     mover = np.empty(m, dtype=np.int64)
@@ -184,4 +190,5 @@ def opening_response(result: JammingResult, *, factorization: str = "auto") -> O
         share[batch] = squared[largest, np.arange(batch.size)] / squared.sum(axis=0)
         mover[batch] = stable_particles[largest]
         inflation[batch] = solution[-1]
-    return OpeningResponse(share=share, mover=mover, inflation=inflation)
+    return OpeningResponse(share=share, mover=mover, inflation=inflation,
+                           reciprocal_condition=reciprocal_condition)
