@@ -259,6 +259,14 @@ class JammingResult:
 
 
 def load_result(path: str | os.PathLike) -> JammingResult:
-    """Read a `JammingResult` written by `JammingResult.save`."""
-    with np.load(path, allow_pickle=False) as data:
-        return JammingResult.from_arrays({key: data[key] for key in data.files})
+    """Read a `JammingResult` written by `JammingResult.save`.
+
+    Raises ValueError, one line naming the file, if it is not a `.npz` archive.
+    """
+    from .io.npz import load_arrays
+
+    arrays = load_arrays(path)
+    try:
+        return JammingResult.from_arrays(arrays)
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None

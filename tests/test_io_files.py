@@ -70,3 +70,43 @@ def test_umask_is_read_without_proc_too(monkeypatch, umask):
     monkeypatch.setattr("calippso.atomic._PROC_STATUS", "/nonexistent/status")
     assert current_umask() == umask
     assert os.umask(umask) == umask  # and left as it was
+
+
+def _not_npz_files(folder) -> dict[str, str]:
+    """Files named .npz that calippso cannot read, with what the error must say about each."""
+    (folder / "text.npz").write_text("positions 1 2 3\n")
+    (folder / "empty.npz").write_bytes(b"")
+    np.save(folder / "array.npy", np.arange(3))
+    (folder / "array.npy").rename(folder / "array.npz")
+    (folder / "broken.npz").write_bytes(b"PK\x03\x04 truncated")
+    np.savez(folder / "objects.npz", positions=np.array([{"a": 1}], dtype=object))
+    archive = "not a calippso/numpy .npz archive"
+    return {"text.npz": f"{archive} (it is not a zip file)", "empty.npz": f"{archive} (it is empty)",
+            "array.npz": f"{archive} (it is a single numpy array, a .npy file)",
+            "broken.npz": "unreadable .npz file (damaged zip:",
+            "objects.npz": "not a calippso .npz file (it holds pickled Python objects"}
+
+
+@pytest.mark.parametrize("loader", [calippso.read, calippso.load_result,
+                                    calippso.io.read_result],
+                         ids=["read", "load_result", "read_result"])
+def test_a_file_that_is_not_an_npz_archive_is_named_on_one_line(tmp_path, loader):
+    for name, why in _not_npz_files(tmp_path).items():
+        with pytest.raises(ValueError) as error:
+            loader(tmp_path / name)
+        message = str(error.value)
+        assert message.startswith(f"{tmp_path / name}: {why}")
+        assert "\n" not in message and "pickle=" not in message and "unsafely" not in message
+
+
+def test_cli_names_a_text_file_given_as_npz(tmp_path, capfd):
+    from calippso.cli import main
+
+    path = tmp_path / "x.npz"
+    path.write_text("not an archive\n")
+    for argv in (["jam", path, "-o", tmp_path / "out.npz"], ["report", path, "-o", tmp_path],
+                 ["convert", path, tmp_path / "x.xyz"]):
+        assert main(list(map(str, argv))) == 1
+        err = capfd.readouterr().err
+        assert err == (f"error: {path}: not a calippso/numpy .npz archive (it is not a zip "
+                       "file)\n")

@@ -22,8 +22,6 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import numpy as np
-
 from ..packing import Packing
 from . import extxyz, gsd, hdf5, npz, packing_generation, skoge_donev
 
@@ -115,11 +113,9 @@ def read_result(path: str | os.PathLike):
         raise ValueError(
             f"{path}: results are stored as .npz or .h5, not {path.suffix or 'no extension'}"
         )
+    arrays = npz.load_arrays(path)
     try:
-        with np.load(path, allow_pickle=False) as data:
-            return JammingResult.from_arrays({key: data[key] for key in data.files})
-    except (OSError, EOFError) as error:
-        raise ValueError(f"{path}: unreadable .npz file ({error})") from None
+        return JammingResult.from_arrays(arrays)
     except ValueError as error:
         raise ValueError(f"{path}: {error}") from None
 
