@@ -711,7 +711,8 @@ def convert(source, target, out):
     "--scheduler",
     metavar="ADDRESS",
     default=None,
-    help="Run on a Dask cluster (e.g. tcp://host:8786) instead of local processes.",
+    help="Run on a Dask cluster (e.g. tcp://host:8786) instead of local processes; "
+    "this process writes the files.",
 )
 @output_options
 def ensemble(
@@ -731,7 +732,8 @@ def ensemble(
     scheduler,
     out,
 ):
-    """Many independent generate → jam → analyse runs; resumes where a previous run stopped."""
+    """Many independent generate → jam → analyse runs; resumes a folder made with the same
+    parameters (a rerun with other parameters is refused)."""
     from . import ensemble as runs
 
     spec = runs.EnsembleSpec(

@@ -1,16 +1,21 @@
 """Ensembles: many independent generate → jam → analyse runs, on local processes or Dask.
 
-Every packing is one task, `run_one(spec, seed, out_dir)`, which writes
-``out_dir/packing_<seed>.npz`` atomically as soon as it is jammed (the full `JammingResult`
-plus the start's keys ``seed``, ``start_phi``, ``start_reduced_pressure``,
-``generation_wall_time``). While it runs, the LS/MLS generator and the jamming loop save
-their state in ``state_<seed>_start.npz`` and ``state_<seed>_jam.npz``; a
-task started again after a crash resumes from them, and they are removed once the packing
-is written. The calling process rewrites ``out_dir/summary.csv`` (one row
-per packing, `COLUMNS`) after each finished task. A re-run skips every seed whose file
-exists (resume); a task that raises is recorded as a "failed" row, with its traceback in
-``packing_<seed>.error.txt``, and the other tasks go on (a failed seed is retried by the
-next run).
+Every packing is one task, `make_one(spec, seed, state_dir)`, which generates and jams it
+and sends back an `Outcome` (the arrays of the jammed packing, or the error). The calling
+process writes every result file itself, as soon as each task comes back:
+``out_dir/packing_<seed>.npz`` atomically (the full `JammingResult` plus the start's keys
+``seed``, ``start_phi``, ``start_reduced_pressure``, ``generation_wall_time``), and
+``out_dir/summary.csv`` (one row per packing, `COLUMNS`) after each finished task. Dask
+workers therefore need no shared disk. Local workers also save the LS/MLS generator's and
+the jamming loop's state in ``state_<seed>_start.npz`` and ``state_<seed>_jam.npz``; a task
+started again after a crash resumes from them, and they are removed once the packing is
+written.
+
+``out_dir/ensemble.json`` (`MANIFEST`) records the `EnsembleSpec` of the folder. A re-run
+with the same spec skips every seed whose file exists (resume) and may add seeds; a re-run
+with another spec is refused. A task that raises is recorded as a "failed" row, with its
+traceback in ``packing_<seed>.error.txt``, and the other tasks go on (a failed seed is
+retried by the next run).
 
 Workers share Numba's on-disk cache of the generators: Numba writes its cache files through
 a temporary file and a rename, so concurrent workers never read half a file; at worst
@@ -22,6 +27,7 @@ from __future__ import annotations
 import concurrent.futures
 import csv
 import io
+import json
 import multiprocessing
 import os
 import time
@@ -36,17 +42,28 @@ __all__ = [
     "COLUMNS",
     "DISTRIBUTIONS",
     "EnsembleSpec",
+    "MANIFEST",
+    "Outcome",
     "PROTOCOLS",
     "SUMMARY",
+    "check_manifest",
     "make_diameters",
+    "make_one",
     "run",
     "run_on_scheduler",
     "run_one",
+    "store",
     "summary_record",
 ]
 
 #: Name of the summary table written in `out_dir`.
 SUMMARY = "summary.csv"
+
+#: Name of the file in `out_dir` that records the `EnsembleSpec` of its packings (JSON).
+MANIFEST = "ensemble.json"
+
+#: Permissions of a new manifest before the umask is applied (as for any new file).
+NEW_FILE_MODE = 0o666
 
 #: Columns of the summary table, in order.
 COLUMNS = (
@@ -218,61 +235,196 @@ def packing_file(out_dir: Path, seed: int) -> Path:
     return Path(out_dir) / f"packing_{seed:06d}.npz"
 
 
-def _row_from_file(path: Path, seed: int) -> dict:
+def state_files(state_dir: Path, seed: int) -> tuple[Path, Path]:
+    """The generator's and the jamming loop's state files of `seed` in `state_dir`."""
+    return tuple(Path(state_dir) / f"state_{seed:06d}_{stage}.npz" for stage in ("start", "jam"))
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one task sends back: the arrays of the jammed packing, or why it failed.
+
+    Attributes
+    ----------
+    seed : int
+        The packing's seed.
+    arrays : dict of str to numpy.ndarray, optional
+        The ``.npz`` keys of the packing (`JammingResult.to_arrays` and the start's keys);
+        None if the task failed.
+    error : str
+        One line, ``<ExceptionType>: <message>``, if the task failed.
+    traceback : str
+        The full traceback, if the task failed.
+    """
+
+    seed: int
+    arrays: dict | None = None
+    error: str = ""
+    traceback: str = ""
+
+    @classmethod
+    def failed(cls, seed: int, error: BaseException) -> "Outcome":
+        """The outcome of a task that raised `error`."""
+        return cls(
+            seed,
+            error=" ".join(f"{type(error).__name__}: {error}".split()),
+            traceback="".join(traceback.format_exception(error)),
+        )
+
+
+def make_one(spec: EnsembleSpec | dict, seed: int, state_dir: str | None = None) -> Outcome:
+    """Generate and jam the packing of one seed; return it as an `Outcome`.
+
+    Writes no result file, so it can run anywhere (a Dask worker without a shared disk).
+    Never raises for a failing packing: the outcome then carries the error.
+
+    Parameters
+    ----------
+    spec : EnsembleSpec or dict
+        What the packing is.
+    seed : int
+        Its seed.
+    state_dir : str, optional
+        Folder for the state files of the generator and the jamming loop (`state_files`),
+        resumed if they exist. None: no state files.
+    """
+    import calippso
+
+    try:
+        spec = EnsembleSpec.of(spec)
+        start_state, jam_state = (None, None) if state_dir is None else state_files(state_dir, seed)
+        start, pressure, seconds = generate_start(spec, seed, start_state)
+        result = calippso.jam(start, solver=spec.solver, checkpoint=jam_state, **spec.jam_options)
+    except Exception as error:  # a failing packing is recorded, the others go on
+        return Outcome.failed(seed, error)
+    extra = {
+        "seed": np.array(seed),
+        "start_phi": np.array(start.phi),
+        "start_reduced_pressure": np.array(pressure),
+        "generation_wall_time": np.array(seconds),
+    }
+    return Outcome(seed, arrays={**result.to_arrays(), **extra})
+
+
+def store(out_dir: str | os.PathLike, outcome: Outcome) -> dict:
+    """Write the outcome of one task into `out_dir`; return its summary row.
+
+    A packing goes to ``packing_<seed>.npz`` (atomically), and its state files and any
+    earlier error file are removed. A failure, or a packing that cannot be written, goes
+    to ``packing_<seed>.error.txt`` (its traceback) and a row with ``state="failed"``.
+    """
+    from .atomic import save_npz_atomic
+
+    out_dir = Path(out_dir)
+    path = packing_file(out_dir, outcome.seed)
+    error_file = path.with_suffix(".error.txt")
+    if outcome.arrays is not None:
+        try:
+            save_npz_atomic(path, outcome.arrays)
+        except Exception as error:  # e.g. a full disk: record the packing as failed
+            outcome = Outcome.failed(outcome.seed, error)
+        else:
+            for finished in (error_file, *state_files(out_dir, outcome.seed)):
+                finished.unlink(missing_ok=True)
+            return _row(outcome.arrays, outcome.seed, path.name)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    error_file.write_text(outcome.traceback)
+    return {"seed": outcome.seed, "state": "failed", "error": outcome.error}
+
+
+def run_one(spec: EnsembleSpec | dict, seed: int, out_dir: str | os.PathLike) -> dict:
+    """Generate, jam and analyse the packing of one seed in this process; write it into
+    `out_dir` (`store`, with the state files there too); return its summary row."""
+    return store(out_dir, make_one(spec, seed, str(out_dir)))
+
+
+def _row(arrays, seed: int, name: str) -> dict:
+    """The summary row of the packing whose ``.npz`` keys are `arrays`."""
     from .result import JammingResult
 
-    with np.load(path, allow_pickle=False) as data:
-        arrays = {key: data[key] for key in data.files}
-    row = {
-        "seed": seed,
-        "state": "done",
-        "file": path.name,
-        **summary_record(JammingResult.from_arrays(arrays)),
-    }
+    row = {"seed": seed, "state": "done", "file": name}
+    row.update(summary_record(JammingResult.from_arrays(arrays)))
     for key in ("start_phi", "start_reduced_pressure", "generation_wall_time"):
         row[key] = float(arrays[key]) if key in arrays else float("nan")
     return row
 
 
-def run_one(spec: EnsembleSpec | dict, seed: int, out_dir: str | os.PathLike) -> dict:
-    """Generate, jam and analyse the packing of one seed; write it; return its summary row.
+def _row_from_file(path: Path, seed: int) -> dict:
+    """The summary row of the packing file `path`."""
+    with np.load(path, allow_pickle=False) as data:
+        return _row({key: data[key] for key in data.files}, seed, path.name)
 
-    Never raises for a failing packing: the row then has ``state="failed"`` and the error,
-    and the traceback is written to ``packing_<seed>.error.txt``.
-    """
-    import calippso
 
-    from .atomic import save_npz_atomic
+def _spec_record(spec: EnsembleSpec) -> dict:
+    """The spec as plain JSON values (what the manifest holds)."""
+    return json.loads(json.dumps(asdict(spec), default=_plain))
 
-    out_dir = Path(out_dir)
-    path = packing_file(out_dir, seed)
-    error_file = path.with_suffix(".error.txt")
-    checkpoints = [out_dir / f"state_{seed:06d}_{stage}.npz" for stage in ("start", "jam")]
+
+def _plain(value):
+    """A numpy scalar as a Python one, for `json.dumps`."""
+    if hasattr(value, "item"):
+        return value.item()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def _read_manifest(path: Path) -> dict:
     try:
-        spec = EnsembleSpec.of(spec)
-        start, pressure, seconds = generate_start(spec, seed, checkpoints[0])
-        result = calippso.jam(
-            start, solver=spec.solver, checkpoint=checkpoints[1], **spec.jam_options
+        return _spec_record(EnsembleSpec.of(json.loads(path.read_text())))
+    except (ValueError, TypeError) as error:
+        raise ValueError(f"{path}: not an ensemble manifest ({error})") from None
+
+
+def _recorded_by_packings(out_dir: Path) -> dict:
+    """n and d of a folder written before manifests existed, from one of its packings."""
+    for path in sorted(out_dir.glob("packing_*.npz")):
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                n, d = data["positions"].shape
+        except (OSError, ValueError, KeyError):
+            continue  # unreadable: run will redo it
+        return {"n": n, "d": d}
+    return {}
+
+
+def _umask() -> int:
+    """The umask of this process (read by setting it and setting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _write_manifest(path: Path, record: dict) -> None:
+    """Write the manifest atomically, with the permissions the umask gives a new file."""
+    from .atomic import atomic_path
+
+    with atomic_path(path) as temporary:
+        temporary.write_text(json.dumps(record, indent=2, sort_keys=True) + "\n")
+        temporary.chmod(NEW_FILE_MODE & ~_umask())
+
+
+def check_manifest(out_dir: Path, spec: EnsembleSpec) -> None:
+    """Record `spec` in a new folder's manifest; refuse a folder made with another spec.
+
+    Raises
+    ------
+    ValueError
+        One line naming the folder and each differing parameter, ``old → new``.
+    """
+    path = Path(out_dir) / MANIFEST
+    wanted = _spec_record(spec)
+    recorded = _read_manifest(path) if path.is_file() else _recorded_by_packings(Path(out_dir))
+    changed = [
+        f"{name} {recorded[name]!r} → {wanted[name]!r}"
+        for name in recorded
+        if recorded[name] != wanted[name]
+    ]
+    if changed:
+        raise ValueError(
+            f"{out_dir} holds an ensemble with other parameters ({', '.join(changed)}): "
+            "rerun with those or choose another folder"
         )
-        extra = {
-            "seed": np.array(seed),
-            "start_phi": np.array(start.phi),
-            "start_reduced_pressure": np.array(pressure),
-            "generation_wall_time": np.array(seconds),
-        }
-        save_npz_atomic(path, {**result.to_arrays(), **extra})
-        for finished in (error_file, *checkpoints):
-            finished.unlink(missing_ok=True)
-        return _row_from_file(path, seed)
-    except Exception as error:  # a failing packing is recorded, the others go on
-        out_dir.mkdir(parents=True, exist_ok=True)
-        error_file.write_text(traceback.format_exc())
-        return _failed_row(seed, error)
-
-
-def _failed_row(seed: int, error: BaseException) -> dict:
-    message = " ".join(f"{type(error).__name__}: {error}".split())
-    return {"seed": seed, "state": "failed", "error": message}
+    if not path.is_file():
+        _write_manifest(path, wanted)
 
 
 def write_summary(out_dir: Path, rows: Iterable[dict]) -> Path:
@@ -328,9 +480,12 @@ def run(
     seeds : int or sequence of int, optional
         The seeds (one per packing), or the first of consecutive seeds (default 0).
     out_dir : str or PathLike
-        Folder for ``packing_<seed>.npz`` files and ``summary.csv``.
+        Folder (of this process) for ``packing_<seed>.npz`` files, ``summary.csv`` and the
+        manifest ``ensemble.json``; this process writes them all.
     executor : concurrent.futures.Executor or dask.distributed.Client, optional
-        Where the tasks run. Default: a pool of `workers` local processes.
+        Where the tasks run. Default: a pool of `workers` local processes. Dask workers
+        only compute and send the packings back; the workers of other executors also keep
+        their state files in `out_dir`, so they must see it.
     workers : int, optional
         Size of the default local pool (default: the number of cores).
     progress : bool
@@ -341,6 +496,11 @@ def run(
     list of dict
         One row per packing (`COLUMNS`), in seed order; ``state`` is "done" or "failed".
         The same rows are in ``out_dir/summary.csv``.
+
+    Raises
+    ------
+    ValueError
+        If `out_dir` holds an ensemble of another spec (`check_manifest`).
     """
     spec = EnsembleSpec.of(spec)
     if int(n_packings) < 1:
@@ -348,6 +508,7 @@ def run(
     seeds = _seeds(seeds, int(n_packings))
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    check_manifest(out_dir, spec)
     rows = {}
     for seed in seeds:
         path = packing_file(out_dir, seed)
@@ -367,8 +528,8 @@ def run(
                 mp_context=multiprocessing.get_context("spawn"),
             )
         try:
-            for seed, row in _completed(executor, spec, pending, out_dir):
-                rows[seed] = row
+            for outcome in _completed(executor, spec, pending, out_dir):
+                rows[outcome.seed] = store(out_dir, outcome)
                 write_summary(out_dir, rows.values())
                 if bar is not None:
                     bar.update(1)
@@ -381,26 +542,31 @@ def run(
 
 
 def _completed(executor, spec: EnsembleSpec, seeds: list[int], out_dir: Path):
-    """Yield (seed, row) as tasks finish; a task lost with its worker gives a failed row."""
+    """Yield each task's `Outcome` as it finishes (a task lost with its worker: failed).
+
+    Dask workers keep no state files (they may not see `out_dir`); other executors keep
+    them in `out_dir`.
+    """
     if _is_dask(executor):
         from distributed import as_completed
 
         futures = {
-            executor.submit(run_one, asdict(spec), seed, str(out_dir), pure=False): seed
+            executor.submit(make_one, asdict(spec), seed, None, pure=False): seed
             for seed in seeds
         }
     else:
         from concurrent.futures import as_completed
 
+        state_dir = str(out_dir.resolve())
         futures = {
-            executor.submit(run_one, asdict(spec), seed, str(out_dir)): seed for seed in seeds
+            executor.submit(make_one, asdict(spec), seed, state_dir): seed for seed in seeds
         }
     for future in as_completed(list(futures)):
-        seed = futures[future]
+        seed = futures.pop(future)  # dropping the future frees its result on the workers
         try:
-            yield seed, future.result()
+            yield future.result()
         except Exception as error:  # the worker died: record it, go on with the others
-            yield seed, _failed_row(seed, error)
+            yield Outcome.failed(seed, error)
 
 
 def _bar(enabled: bool, total: int, initial: int):
@@ -423,8 +589,10 @@ def run_on_scheduler(
 ) -> list[dict]:
     """`run` on the Dask cluster whose scheduler is at `address` (needs ``distributed``).
 
-    `out_dir` must be a folder that the workers and this process share (the same machine,
-    or a shared file system). `timeout` is the time allowed to connect, in seconds.
+    The workers only compute; each packing comes back to this process, which writes it into
+    `out_dir` (a folder of this process, relative to its working directory) as soon as it
+    arrives, so the workers need no shared disk. `timeout` is the time allowed to connect,
+    in seconds.
     """
     try:
         from distributed import Client

@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import concurrent.futures
 import csv
+import dataclasses
 import json
+import os
+import re
 
 import pytest
+from click.testing import CliRunner
 
 from calippso import ensemble
-from calippso.cli import main
+from calippso.cli import cli, main
 
 SPEC = {"protocol": "ls", "n": 24, "d": 2, "distribution": "bidisperse"}
 
@@ -43,42 +48,44 @@ def test_local_processes_write_resume_and_record_failures(tmp_path):
     assert len(_table(tmp_path)) == 4
 
 
-def test_dask_local_cluster(tmp_path):
+def test_dask_workers_only_compute_and_the_client_writes(tmp_path, monkeypatch):
+    # Workers in another working directory, as on a cluster without a shared disk: with a
+    # relative out_dir, every file must land in the client's folder, none in the worker's.
     distributed = pytest.importorskip("distributed")
+    client_dir, worker_dir = tmp_path / "client", tmp_path / "worker"
+    client_dir.mkdir()
+    worker_dir.mkdir()
+    monkeypatch.chdir(client_dir)
     with distributed.LocalCluster(
         n_workers=1,
-        threads_per_worker=2,
-        processes=False,
+        threads_per_worker=1,
+        processes=True,
         protocol="tcp://",
         host="127.0.0.1",
         dashboard_address=None,
+        local_directory=str(tmp_path / "scratch"),
     ) as cluster:
         with distributed.Client(cluster) as client:
-            rows = ensemble.run(SPEC, 2, seeds=5, out_dir=tmp_path, executor=client)
-        assert [row["state"] for row in rows] == ["done", "done"]
-        # The CLI's --scheduler path, on the same cluster: one new packing, two resumed.
-        code = main(
-            [
-                "ensemble",
-                "--n",
-                "24",
-                "--d",
-                "2",
-                "--distribution",
-                "bidisperse",
-                "--seed",
-                "5",
-                "--packings",
-                "3",
-                "-o",
-                str(tmp_path),
-                "--scheduler",
-                cluster.scheduler_address,
-                "--quiet",
-            ]
-        )
-    assert code == 0
-    assert [row["state"] for row in _table(tmp_path)] == ["done"] * 3
+            client.run(os.chdir, str(worker_dir))
+            assert list(client.run(os.getcwd).values()) == [str(worker_dir)]
+            rows = ensemble.run(SPEC, 2, seeds=5, out_dir="ens", executor=client)
+            assert [row["state"] for row in rows] == ["done", "done"]
+            # The CLI's --scheduler path, on the same cluster: one new packing, two resumed.
+            result = CliRunner().invoke(
+                cli,
+                [
+                    "ensemble", "--n", "24", "--d", "2", "--distribution", "bidisperse",
+                    "--seed", "5", "--packings", "3", "-o", "ens",
+                    "--scheduler", cluster.scheduler_address, "--quiet",
+                ],
+            )
+    assert result.exit_code == 0, result.output
+    assert "3 of 3 packings done" in result.output
+    assert [row["state"] for row in _table(client_dir / "ens")] == ["done"] * 3
+    assert sorted(p.name for p in (client_dir / "ens").glob("packing_*")) == [
+        "packing_000005.npz", "packing_000006.npz", "packing_000007.npz"
+    ]
+    assert list(worker_dir.iterdir()) == []
 
 
 def test_unreachable_scheduler_is_named(tmp_path):
@@ -125,3 +132,53 @@ def test_ls_starts_with_a_slow_end_jam_in_a_few_lps(tmp_path):
     assert rows[0]["state"] == "done"
     row = _table(tmp_path)[0]
     assert row["isostatic"] == "True" and int(row["iterations"]) <= 5
+
+
+def test_folder_remembers_its_spec_and_refuses_another(tmp_path):
+    threads = concurrent.futures.ThreadPoolExecutor(1)
+    previous = os.umask(0o027)
+    try:
+        ensemble.run(SPEC, 1, seeds=1, out_dir=tmp_path, executor=threads)
+    finally:
+        os.umask(previous)
+    manifest = tmp_path / ensemble.MANIFEST
+    assert json.loads(manifest.read_text()) == dataclasses.asdict(ensemble.EnsembleSpec(**SPEC))
+    assert manifest.stat().st_mode & 0o777 == 0o640  # the umask, not mkstemp's 0o600
+    refusal = (
+        f"{tmp_path} holds an ensemble with other parameters "
+        "(n 24 → 32, distribution 'bidisperse' → 'monodisperse'): "
+        "rerun with those or choose another folder"
+    )
+    with pytest.raises(ValueError, match=f"^{re.escape(refusal)}$"):
+        ensemble.run({"n": 32, "d": 2}, 2, seeds=1, out_dir=tmp_path, executor=threads)
+    assert len(_table(tmp_path)) == 1  # nothing was run or rewritten
+
+    rows = ensemble.run(SPEC, 2, seeds=1, out_dir=tmp_path, executor=threads)  # extend
+    assert [row["state"] for row in rows] == ["done", "done"]
+
+    manifest.unlink()  # a folder written before manifests: n and d come from its packings
+    with pytest.raises(ValueError, match=r"\(n 24 → 32\)"):
+        ensemble.run({**SPEC, "n": 32}, 2, seeds=1, out_dir=tmp_path, executor=threads)
+    threads.shutdown()
+
+
+def test_cli_refuses_a_rerun_with_other_parameters(tmp_path, capfd):
+    folder = tmp_path / "ens"
+    args = ["ensemble", "--protocol", "poisson", "--n", "16", "--d", "2", "--workers", "1",
+            "-o", str(folder), "--quiet"]
+    runner = CliRunner()
+    first = runner.invoke(cli, [*args, "--packings", "1"])
+    assert first.exit_code == 0 and "1 of 1 packings done" in first.output
+    more = runner.invoke(cli, [*args, "--packings", "2"])  # same spec: resume and extend
+    assert more.exit_code == 0 and "2 of 2 packings done" in more.output
+
+    changed = runner.invoke(cli, [*args, "--packings", "2", "--n", "20"])
+    assert changed.exit_code != 0
+    assert str(changed.exception) == (
+        f"{folder} holds an ensemble with other parameters (n 16 → 20): "
+        "rerun with those or choose another folder"
+    )
+    capfd.readouterr()
+    assert main([*args, "--packings", "2", "--n", "20"]) == 1  # the command's own error line
+    assert capfd.readouterr().err == f"error: {changed.exception}\n"
+    assert len(_table(folder)) == 2
