@@ -28,6 +28,7 @@ from .contacts import (contact_mask, force_balance, isostaticity_gap, polish_for
 from .errors import JammingError, SolverError
 from .lp import LinearProgram, build_lp, largest_safe_step, select_pairs
 from .neighbors import NeighborSearch, Pairs
+from .network_guess import NetworkGuess, check_network_hint, guess_networks
 from .newton import refine_isostatic
 from .packing import Packing, wrap
 from .precompress import precompress, precompress_checkpoint
@@ -54,6 +55,9 @@ INITIAL_STEP_FLOOR = 1e-3
 LOOSE_INPUT_GAP = 1e-3
 #: The loop stops as stalled (not converged) after this many LPs without progress.
 STALL_LPS = 25
+#: Candidate networks the network-first stage hands to the Newton stage at most (each costs a
+#: sparse factorisation).
+MAX_NETWORK_GUESSES = 3
 #: Pairs closer than this relative gap count as touching when the LP duals are degenerate
 #: (`_Jammer._hyperstatic_network`).
 GEOMETRIC_CONTACT_GAP = 1e-11
@@ -66,7 +70,8 @@ BINDING_REDUCED_COST = 1e-6
 def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: float = 1e-12,
         tol_s: float = 1e-9, max_iters: int = 1000, verbose: bool = False,
         callback: Callable[[dict], bool | None] | None = None,
-        checkpoint: str | os.PathLike | None = None, **options) -> JammingResult:
+        checkpoint: str | os.PathLike | None = None, network=None,
+        **options) -> JammingResult:
     """Bring a configuration of hard (hyper)spheres to its jamming point with CALiPPSO.
 
     Parameters
@@ -89,15 +94,22 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     verbose : bool
         Print one line per LP.
     callback : callable, optional
-        Called after every LP with a dict (the history record plus "iteration" and "packing");
-        returning True stops the run (the result then has ``converged=False``).
+        Called after every history record (every LP, and the "guess" and "newton" stages) with
+        a dict (the record plus "iteration", the LPs solved so far, and "packing"); returning
+        True stops the run after an LP or a Newton stage of the loop (the result then has
+        ``converged=False``).
     checkpoint : str or PathLike, optional
         File (``.npz``) where the loop's state is saved atomically after every LP. If it
         exists, the run resumes from it (same input and settings required, otherwise
         ValueError) and gives the result the uninterrupted run would have given.
+    network : array_like, shape (M, 2), int, optional
+        A contact network the caller knows (e.g. `GenerationResult.contacts` of a
+        soft-sphere quench): pairs of particle indices. It is tried first by the
+        network-first stage (``network_first``) and used only if the Newton certificate
+        proves its jamming point.
     **options
-        Further `JamSettings` fields (e.g. ``initial_step``, ``max_step``,
-        ``contact_threshold``, ``feasibility_tolerance``). ``precompress_pressure=1e5``
+        Further `JamSettings` fields (e.g. ``network_first``, ``initial_step``,
+        ``max_step``, ``contact_threshold``, ``feasibility_tolerance``). ``precompress_pressure=1e5``
         first compresses a loose input by Lubachevsky–Stillinger MD (`calippso.precompress`);
         with a checkpoint, that stage keeps its own file beside it (``*.precompress.npz``).
 
@@ -109,14 +121,18 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     ------
     ValueError
         Bad input: wrong shapes, NaN, non-positive sizes, a particle wider than half the box,
-        or overlapping particles (beyond round-off, `overlap_tolerance`).
+        overlapping particles (beyond round-off, `overlap_tolerance`), too few particles to
+        jam (fewer than 2 d + 1), or a malformed ``network``.
     JammingError
-        Every backend failed on an LP; the exception keeps the last valid configuration.
+        Every backend failed on an LP (the exception keeps the last valid configuration),
+        or ``network_first="require"`` and no guessed network was certified.
     """
     settings = JamSettings.from_options(solver=solver, tol_gamma=tol_gamma, tol_s=tol_s,
                                         max_iters=max_iters, verbose=verbose, **options)
     start = time.perf_counter()
     packing = _as_packing(packing, diameters, box)
+    check_enough_particles(packing.n, packing.d)
+    hint = None if network is None else check_network_hint(network, packing.n)
     notes = []
     if settings.precompress_pressure is not None:
         scale = packing.mean_diameter
@@ -126,7 +142,8 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         packing, note = precompress(packing, settings.precompress_pressure,
                                     precompress_checkpoint(checkpoint))
         notes.append(note)
-    return _Jammer(packing, settings, callback, checkpoint, start=start, notes=notes).run()
+    return _Jammer(packing, settings, callback, checkpoint, start=start, notes=notes,
+                   hint=hint).run()
 
 
 def _as_packing(packing, diameters, box) -> Packing:
@@ -137,6 +154,21 @@ def _as_packing(packing, diameters, box) -> Packing:
     if diameters is None or box is None:
         raise TypeError("jam(positions, diameters, box): diameters and box are required")
     return Packing(packing, diameters, box)
+
+
+def check_enough_particles(n: int, d: int) -> None:
+    """Raise ValueError when N particles cannot jam in d dimensions.
+
+    Under the minimum-image convention a stable particle touches d + 1 distinct others, and an
+    isostatic network of N_s particles has N_c = d (N_s − 1) + 1 ≤ N_s (N_s − 1) / 2 contacts:
+    so N_s ≥ 2 d + 1, whatever the box.
+    """
+    least = 2 * d + 1
+    if n < least:
+        raise ValueError(f"cannot jam {n} particle(s) in d = {d}: a jammed packing in a "
+                         f"periodic box needs at least 2 d + 1 = {least} particles (each stable "
+                         f"particle touches d + 1 others, and an isostatic network of N_s "
+                         f"particles has d (N_s - 1) + 1 contacts)")
 
 
 def check_input_overlaps(search: NeighborSearch, tolerance: float) -> None:
@@ -156,9 +188,10 @@ def check_input_overlaps(search: NeighborSearch, tolerance: float) -> None:
         k = int(np.argmin(gaps))
         count = int(np.count_nonzero(gaps < -tolerance))
         raise ValueError(
-            f"overlapping particles in the input: {count} pair(s) overlap, the worst is "
-            f"({close.i[k]}, {close.j[k]}) with gap h = |r|/sigma - 1 = {gaps[k]:.3e} "
-            f"(accepted as round-off: h > -{tolerance:g})")
+            f"overlapping particles in the input: {count} pair(s) overlap beyond round-off "
+            f"(h < -{tolerance:g}), the worst is ({close.i[k]}, {close.j[k]}) with gap "
+            f"h = |r|/sigma - 1 = {gaps[k]:.3e}; shrink every diameter by the factor 1 + h "
+            f"of the worst pair, or make the start with a generator")
 
 
 def initial_step_bound(gap: float, settings: JamSettings) -> float:
@@ -330,8 +363,9 @@ class _Jammer:
 
     def __init__(self, packing: Packing, settings: JamSettings, callback,
                  checkpoint: str | os.PathLike | None = None, start: float | None = None,
-                 notes: list[str] | None = None):
+                 notes: list[str] | None = None, hint: np.ndarray | None = None):
         self.settings = settings
+        self.hint = hint
         self.callback = callback
         self.start = time.perf_counter() if start is None else start
         self.scale = packing.mean_diameter
@@ -349,6 +383,7 @@ class _Jammer:
             from .solvers.highs import check_interior_point
             check_interior_point(settings.interior_point)
         self.failed_networks: set[str] = set()
+        self.newton_failure = ""          # why the last Newton stage was not certified
         self.retried_lps = 0
         self.stalled = False
         self.forced = np.zeros((0, 2), dtype=np.int64)
@@ -384,8 +419,8 @@ class _Jammer:
     # ----------------------------------------------------------------- helpers
     @property
     def lps_solved(self) -> int:
-        """LPs solved so far (history records other than the Newton stage)."""
-        return sum(record["stage"] != "newton" for record in self.records)
+        """LPs solved so far (history records of the LP loop and the force clean-up)."""
+        return sum(record["stage"] in ("lp", "cleanup") for record in self.records)
 
     def packing(self) -> Packing:
         """The current configuration in the caller's units."""
@@ -529,6 +564,13 @@ class _Jammer:
         stopped = False
         network: _Network | None = None
         verifying = False
+        if settings.network_first != "off" and not self.records:
+            network = self._network_first()
+            if network is not None:
+                return self._finish(network, converged=True, stopped=False)
+            if settings.network_first == "require":
+                raise self._fail("network_first='require': no network guessed from the input "
+                                 "was certified (" + self.notes[-1] + ")")
         while self.lps_solved < settings.max_iters:
             bound = largest_safe_step(self.search, self.step)
             if bound < settings.min_step * 1e-3:
@@ -639,27 +681,81 @@ class _Jammer:
         return self.callback is not None and bool(self.callback(
             {**record, "iteration": self.lps_solved, "packing": self.packing()}))
 
+    # ----------------------------------------------------------------- network first
+    def _network_first(self) -> _Network | None:
+        """The input's own contact network, certified by the Newton stage with no LP, or None.
+
+        Candidates come from `calippso.network_guess` (the hint first, then the gap
+        spectrum); at most `MAX_NETWORK_GUESSES` go to the Newton stage. Each adds a history
+        record (stage "guess"), a certified one also the Newton record; the status notes say
+        what happened.
+        """
+        start = time.perf_counter()
+        guesses = guess_networks(self.search, self.d, self.hint)[:MAX_NETWORK_GUESSES]
+        if not guesses:
+            self.notes.append("network first: the input holds no isostatic contact network "
+                              "(not near a jamming point), so the LP loop ran")
+            return None
+        failures = []
+        for guess in guesses:
+            self._record_guess(guess, time.perf_counter() - start)
+            network = _Network(guess.i, guess.j, np.zeros(guess.i.shape[0]), guess.rattlers,
+                               float("nan"), "none", from_lp=False)
+            origin = (f"{'given as a hint' if guess.source == 'hint' else 'read from the gap spectrum'}"
+                      f", {guess.i.shape[0]} contacts"
+                      + (f", {guess.dropped} near-contact(s) dropped" if guess.dropped else ""))
+            refined = self._newton(network, origin=origin)
+            if refined is not None:
+                if self.callback is not None:
+                    self.callback({**self.records[-1], "iteration": 0, "packing": self.packing()})
+                return refined
+            failures.append(f"{guess.source}: {self.newton_failure}")
+            start = time.perf_counter()
+        self.notes.append(f"network first: no guessed network was certified "
+                          f"({'; '.join(failures)}), so the LP loop ran")
+        return None
+
+    def _record_guess(self, guess: NetworkGuess, seconds: float) -> None:
+        """History record of one guessed network (stage "guess"; no LP, nothing moves)."""
+        close = self.search.pairs_within(float(self.diameters.max()) * (1.0 + 1e-6))
+        self.records.append({
+            "stage": "guess", "wall_time": time.perf_counter() - self.start,
+            "solver_time": seconds, "sqrt_gamma_minus_1": 0.0, "max_displacement": 0.0,
+            "rows": 0, "step_bound": float("nan"), "n_contacts": int(guess.i.shape[0]),
+            "isostaticity_gap": 0, "force_balance": float("nan"),
+            "min_gap": float(close.gaps.min()) if len(close) else float("inf"),
+            "phi": self.packing().phi,
+        })
+        if self.settings.verbose:
+            self._print(self.records[-1])
+        if self.callback is not None:
+            self.callback({**self.records[-1], "iteration": 0, "packing": self.packing()})
+
     # ----------------------------------------------------------------- Newton stage
-    def _newton(self, network: _Network, retry: bool = False) -> _Network | None:
+    def _newton(self, network: _Network, retry: bool = False,
+                origin: str | None = None) -> _Network | None:
         """Solve the contact equations of an isostatic network; None unless certified.
 
         Certified means: every force positive and no other pair overlapping beyond
         `NEWTON_OVERLAP_TOLERANCE` (see `calippso.newton`). Rattlers that the moved cages
         now overlap are first moved out of the way (`calippso.rattlers.separate_rattlers`).
         A network that failed once is not tried again, unless `retry` (at the end of the
-        loop, from the converged positions).
+        loop, from the converged positions). `origin` describes a network that did not come
+        from an LP (the network-first stage), for the status.
         On success the configuration moves to the certified jamming point and a history
-        record (stage "newton") is added.
+        record (stage "newton") is added; on failure `newton_failure` says why.
         """
         order = np.sort(network.i * self.n + network.j)
         key = hashlib.sha256(order.tobytes()).hexdigest()
         if key in self.failed_networks and not retry:
+            self.newton_failure = "tried before"
             return None
         start = time.perf_counter()
         refined = refine_isostatic(self.positions, self.diameters, self.box, network.i,
                                    network.j, ~network.rattlers)
         if refined is None:
             self.failed_networks.add(key)
+            self.newton_failure = "Newton did not converge or the Jacobian is singular"
             return None
         positions = refined.positions
         search, close, overlapping = self._overlaps_outside(positions, refined.diameters,
@@ -675,6 +771,8 @@ class _Jammer:
                     positions, refined.diameters, order)
         if overlapping.any() or not refined.positive:
             self.failed_networks.add(key)
+            self.newton_failure = ("a non-positive force" if not refined.positive else
+                                   f"{int(overlapping.sum())} other pair(s) would overlap")
             return None
         self.positions, self.diameters, self.search = (positions, refined.diameters, search)
         current = search.pairs_of(network.i, network.j)
@@ -699,10 +797,14 @@ class _Jammer:
         })
         if self.settings.verbose:
             self._print(self.records[-1])
-        self.notes.append(f"contact equations solved by Newton ({refined.iterations} "
-                          f"iterations, residual {refined.residual:.0e}) after "
-                          f"{self.lps_solved} LPs; certified by positive forces and no "
-                          f"overlap")
+        solved = (f"by Newton ({refined.iterations} iterations, {refined.factorizations} "
+                  f"factorisation(s), residual {refined.residual:.0e})")
+        if origin is None:
+            self.notes.append(f"contact equations solved {solved} after {self.lps_solved} "
+                              f"LPs; certified by positive forces and no overlap")
+        else:
+            self.notes.append(f"the input's own contact network ({origin}) solved {solved} "
+                              f"with no LP; certified by positive forces and no overlap")
         return _Network(network.i, network.j, refined.forces, network.rattlers,
                         float(refined.forces @ weights), network.solver, from_lp=False)
 
@@ -830,7 +932,9 @@ class _Jammer:
     def _status(self, converged: bool, stopped: bool, gap: int) -> str:
         # the loop's last step, not the force clean-up LP (whose step is never taken)
         last = [record for record in self.records if record["stage"] != "cleanup"][-1]
-        if converged:
+        if converged and self.lps_solved == 0:
+            head = "Jammed: the input's own contact network certified, with no LP"
+        elif converged:
             head = f"Jammed: converged after {self.lps_solved} LPs"
         elif stopped:
             head = f"Stopped by the callback after {self.lps_solved} LPs"

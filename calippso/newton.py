@@ -29,11 +29,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
+from scipy.sparse.linalg import SuperLU, splu
 
 from .packing import minimum_image, wrap
 
-__all__ = ["Refinement", "refine_isostatic"]
+__all__ = ["Refinement", "refine_isostatic", "factorize"]
 
 #: Newton stops once the largest correction is below this (mean diameters); quadratic
 #: convergence then leaves an error far below round-off.
@@ -43,6 +43,14 @@ RESIDUAL_TOLERANCE = 1e-12
 #: Newton gives up when a correction exceeds this (mean diameters): the start was too far.
 MAX_CORRECTION = 0.05
 MAX_ITERATIONS = 30
+#: A chord step (old factors) must shrink the correction at least by this factor; a slower
+#: one factorises the Jacobian again at the current point (a Newton step).
+CHORD_CONTRACTION = 0.25
+#: Iterative refinement of the self-stress stops once its residual is below this relative
+#: backward error (about 50 units of round-off).
+REFINEMENT_TOLERANCE = 1e-14
+#: Refinement steps tried before the Jacobian at the solution is factorised itself.
+MAX_REFINEMENTS = 8
 #: Smallest force, relative to the largest, that certifies a contact (the LP's own contact
 #: threshold on the duals, `JamSettings.contact_threshold`, has the same value).
 MIN_FORCE_RATIO = 1e-10
@@ -62,7 +70,9 @@ class Refinement:
         Contact forces f_c = μ_c / 2 in the LP's normalisation Σ μ_c σ_c²/(2|r_c|) = 1, all
         positive, in the order of the contacts given.
     iterations : int
-        Newton iterations (sparse LU factorisations).
+        Newton iterations (corrections applied).
+    factorizations : int
+        Sparse LU factorisations of the Jacobian (chord steps reuse one).
     sqrt_gamma_minus_1 : float
         √Γ − 1: the diameter growth from the starting configuration.
     max_displacement : float
@@ -75,6 +85,7 @@ class Refinement:
     diameters: np.ndarray
     forces: np.ndarray
     iterations: int
+    factorizations: int
     sqrt_gamma_minus_1: float
     max_displacement: float
     residual: float
@@ -108,9 +119,28 @@ def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_col: np.ndarray
                          shape=(m, n_unknowns))
 
 
+def factorize(matrix: sp.csc_matrix) -> SuperLU | None:
+    """Sparse LU factors of a square Jacobian (SuperLU, COLAMD column ordering).
+
+    COLAMD gave the least fill and the fastest factorisation of contact Jacobians among
+    SuperLU's orderings (`bench/newton_factorization.py`). Returns None when the matrix is
+    exactly singular.
+    """
+    try:
+        return splu(matrix, permc_spec="COLAMD")
+    except RuntimeError:  # exactly singular: the network has a floppy mode
+        return None
+
+
 def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                      i: np.ndarray, j: np.ndarray, stable: np.ndarray) -> Refinement | None:
     """Solve the contact equations of an isostatic network and certify the forces.
+
+    Chord steps: the Jacobian is factorised once, at the start, and its factors serve every
+    correction while they shrink by at least `CHORD_CONTRACTION` per step (near a jamming
+    point they shrink by orders of magnitude); only a slower step factorises again, at the
+    current point. The self-stress of the certificate is solved with the same factors,
+    refined iteratively against the Jacobian at the solution.
 
     Parameters
     ----------
@@ -150,14 +180,16 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         vectors = moved[i] - moved[j] + image_shift
         return np.einsum("md,md->m", vectors, vectors) * inverse_sigma2 - gamma, vectors
 
+    def jacobian(vectors: np.ndarray) -> sp.csc_matrix:
+        return _jacobian(vectors, inverse_sigma2, i_col, j_col, n_unknowns)
+
     residual, vectors = residual_and_vectors()
-    factor = None
+    factors = factorize(jacobian(vectors))
+    if factors is None:
+        return None
+    factorizations, previous = 1, np.inf
     for iteration in range(1, MAX_ITERATIONS + 1):
-        try:
-            factor = splu(_jacobian(vectors, inverse_sigma2, i_col, j_col, n_unknowns))
-        except RuntimeError:  # exactly singular: the network has a floppy mode
-            return None
-        correction = factor.solve(-residual)
+        correction = factors.solve(-residual)
         if not np.all(np.isfinite(correction)):
             return None
         largest = float(np.abs(correction[:-1]).max(initial=0.0))
@@ -168,16 +200,20 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         residual, vectors = residual_and_vectors()
         if largest < STEP_TOLERANCE:
             break
+        if largest > CHORD_CONTRACTION * previous:   # the chord is too slow: a Newton step
+            factors = factorize(jacobian(vectors))
+            if factors is None:
+                return None
+            factorizations += 1
+            largest = np.inf
+        previous = largest
     else:
         return None
     worst = float(np.abs(residual).max())
     if worst > RESIDUAL_TOLERANCE or gamma <= 0:
         return None
-    factor = splu(_jacobian(vectors, inverse_sigma2, i_col, j_col, n_unknowns))
-    target = np.zeros(n_unknowns)
-    target[-1] = -1.0
-    stress = factor.solve(target, trans="T")  # J_xᵀ y = 0 (balance), Σ y = 1
-    if not np.all(np.isfinite(stress)):
+    stress = _self_stress(factors, jacobian(vectors))  # J_xᵀ y = 0 (balance), Σ y = 1
+    if stress is None:
         return None
     new_diameters = diameters * np.sqrt(gamma)
     new_sigma = sigma * np.sqrt(gamma)
@@ -185,6 +221,35 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     forces = distances * stress / new_sigma**2  # f = μ/2 with μ = 2|r| y / σ'²
     return Refinement(
         positions=wrap(moved, box), diameters=new_diameters, forces=forces,
-        iterations=iteration, sqrt_gamma_minus_1=float(np.sqrt(gamma) - 1.0),
+        iterations=iteration, factorizations=factorizations,
+        sqrt_gamma_minus_1=float(np.sqrt(gamma) - 1.0),
         max_displacement=float(np.abs(moved[movable] - positions[movable]).max(initial=0.0)),
         residual=worst)
+
+
+def _self_stress(factors: SuperLU, jacobian: sp.csc_matrix) -> np.ndarray | None:
+    """The solution y of Jᵀ y = (0, …, 0, −1), from factors of a nearby Jacobian.
+
+    Iterative refinement: y ← y + F⁻ᵀ (b − Jᵀ y) with F the given factors, until the
+    residual is below `REFINEMENT_TOLERANCE` × (|Jᵀ| |y| + |b|) (a backward error of a few
+    units of round-off, as a factorisation of J itself would give). When that takes more
+    than `MAX_REFINEMENTS` steps, J itself is factorised. None when J is singular.
+    """
+    target = np.zeros(jacobian.shape[0])
+    target[-1] = -1.0
+    transposed = jacobian.T.tocsr()
+    magnitudes = abs(transposed)
+    stress = factors.solve(target, trans="T")
+    for _ in range(MAX_REFINEMENTS + 1):
+        if not np.all(np.isfinite(stress)):
+            break
+        remainder = target - transposed @ stress
+        scale = float((magnitudes @ np.abs(stress)).max()) + 1.0
+        if float(np.abs(remainder).max()) <= REFINEMENT_TOLERANCE * scale:
+            return stress
+        stress = stress + factors.solve(remainder, trans="T")
+    exact = factorize(jacobian)
+    if exact is None:
+        return None
+    stress = exact.solve(target, trans="T")
+    return stress if np.all(np.isfinite(stress)) else None

@@ -38,7 +38,8 @@ __all__ = ["JammingResult", "load_result", "HISTORY_COLUMNS", "empty_history"]
 #: Columns of `JammingResult.history` (a numpy structured array, one record per stage:
 #: every LP, the Newton stage if it ran, and the force clean-up LP if one was needed).
 HISTORY_COLUMNS: dict[str, tuple[object, str]] = {
-    "stage": ("U8", "'lp', 'newton' (contact equations solved and certified) or 'cleanup'"),
+    "stage": ("U8", "'guess' (a contact network read from the input, before any LP), "
+                    "'lp', 'newton' (contact equations solved and certified) or 'cleanup'"),
     "wall_time": (np.float64, "seconds since the call to jam, at the end of this iteration"),
     "solver_time": (np.float64, "seconds spent inside the LP solver for this iteration"),
     "sqrt_gamma_minus_1": (np.float64, "√Γ* − 1, the relative diameter growth of this LP"),
@@ -85,14 +86,17 @@ class JammingResult:
     rattlers : ndarray, shape (N,), bool
         Particles removed recursively for having fewer than d + 1 contacts.
     converged : bool
-        √Γ − 1 < tol_gamma and max |s| over non-rattlers < tol_s.
+        The run reached the jamming point: √Γ − 1 < tol_gamma and max |s| over non-rattlers
+        < tol_s, or the Newton stage's certificate proved it (`calippso.newton`).
     status : str
         One sentence on how the run ended (and any repair that was applied).
     iterations : int
-        Number of LPs solved (including a final force clean-up LP, if one was needed).
+        Number of LPs solved (including a final force clean-up LP, if one was needed); 0
+        when the network-first stage certified the input's own contact network.
     history : ndarray, structured
-        One record per LP, plus one for the Newton stage if it ran; fields are
-        `HISTORY_COLUMNS`. `history["phi"]` is a column.
+        One record per LP, plus one per guessed network (network first) and one for the
+        Newton stage if it ran; fields are `HISTORY_COLUMNS`. `history["phi"]` is a
+        column.
     wall_time : float
         Seconds from the call to `jam` to the verified result.
     force_balance : float
@@ -100,7 +104,7 @@ class JammingResult:
     dual_normalization : float
         Σ λ_ij σ_ij² over contacts of the last LP (1 up to round-off).
     solver : str
-        The backend that solved the last LP.
+        The backend that solved the last LP ("none" when no LP was needed).
     """
 
     packing: Packing

@@ -12,6 +12,9 @@ __all__ = ["JamSettings", "SOLVERS"]
 #: Names accepted by ``jam(..., solver=...)``.
 SOLVERS = ("highs", "clarabel", "cvxpy")
 
+#: Values accepted by ``jam(..., network_first=...)``.
+NETWORK_FIRST_MODES = ("auto", "off", "require")
+
 #: Names accepted by ``jam(..., interior_point=...)`` (HiGHS backend).
 INTERIOR_POINT_SOLVERS = ("ipx", "hipo")
 
@@ -60,6 +63,13 @@ class JamSettings:
     newton_start : float
         ... once the LP's largest displacement of a stable particle is below this (mean
         diameters): earlier networks are rarely the jammed one.
+    network_first : str
+        Before any LP, guess the input's own contact network (a hint passed as
+        ``jam(..., network=pairs)`` first, then the pairs below the largest jump of the sorted
+        gaps, `calippso.network_guess`) and, if one is isostatic, prove its jamming point by
+        the Newton stage and its certificate. "auto" (default): try, and run the LP loop
+        when no guess is certified; "off": LPs only; "require": raise `JammingError` instead
+        of running an LP (for large N, where an LP costs minutes).
     verify_newton : bool
         After a certified Newton stage, solve one more LP at the final configuration and
         continue the loop unless it meets the convergence criteria.
@@ -99,6 +109,7 @@ class JamSettings:
     balance_tolerance: float = 1e-12
     newton: bool = True
     newton_start: float = 1e-4
+    network_first: str = "auto"
     verify_newton: bool = False
     warm_start: bool = True
     interior_point: str = "ipx"
@@ -109,6 +120,9 @@ class JamSettings:
     def __post_init__(self) -> None:
         if self.solver not in SOLVERS:
             raise ValueError(f"unknown solver {self.solver!r}: choose one of {', '.join(SOLVERS)}")
+        if self.network_first not in NETWORK_FIRST_MODES:
+            raise ValueError(f"unknown network_first {self.network_first!r}: choose one of "
+                             f"{', '.join(NETWORK_FIRST_MODES)}")
         if self.interior_point not in INTERIOR_POINT_SOLVERS:
             raise ValueError(f"unknown interior_point {self.interior_point!r}: choose one of "
                              f"{', '.join(INTERIOR_POINT_SOLVERS)}")

@@ -88,7 +88,7 @@ def test_a_round_off_force_does_not_certify():
     from calippso.newton import MIN_FORCE_RATIO, Refinement
 
     refinement = Refinement(positions=np.zeros((3, 2)), diameters=np.ones(3),
-                            forces=np.array([1.0, 0.5, 2.0]), iterations=1,
+                            forces=np.array([1.0, 0.5, 2.0]), iterations=1, factorizations=1,
                             sqrt_gamma_minus_1=0.0, max_displacement=0.0, residual=0.0)
     assert refinement.positive
     assert not replace(refinement, forces=np.array([1.0, 4e-16, 2.0])).positive

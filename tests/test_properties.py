@@ -32,7 +32,8 @@ SETTINGS = settings(max_examples=12, deadline=None, derandomize=True, database=N
 
 def make_configuration(d: int, n: int, spread: float, phi: float, seed: int) -> Packing | None:
     """Random sequential addition of up to `n` spheres (log-normal sizes of width `spread`)
-    at packing fraction ~`phi`; None when fewer than d + 2 fit or the box is too small."""
+    at packing fraction ~`phi`; None when fewer than 2 d + 1 fit (too few to jam, refused by
+    `jam`: see test_extremes) or the box is too small."""
     rng = np.random.default_rng(seed)
     sizes = np.exp(spread * rng.standard_normal(n)) if spread else np.ones(n)
     sizes /= sizes.mean()
@@ -50,7 +51,7 @@ def make_configuration(d: int, n: int, spread: float, phi: float, seed: int) -> 
                 placed = np.vstack([placed, trial])
                 kept.append(k)
                 break
-    if len(kept) < d + 2 or sizes.max() >= 0.5 * side:
+    if len(kept) < 2 * d + 1 or sizes.max() >= 0.5 * side:
         return None
     return Packing(placed, sizes[kept], box)
 
