@@ -301,6 +301,20 @@ def test_fit_needs_enough_points():
         fit_cumulative_power_law(np.linspace(0.5, 1, 100), upper=0.0)
 
 
+def test_an_exponent_fitted_on_few_values_carries_a_warning():
+    from calippso.analysis.fits import MIN_RELIABLE_POINTS
+
+    rng = np.random.default_rng(3)
+    small, large = (exponent_from_sample("theta_l", PooledSample.from_values(
+        rng.random(n) ** (1 / 1.17)), n_bootstrap=0) for n in (150, 5000))  # G(f) = f^1.17
+    assert small.fit.n_points < MIN_RELIABLE_POINTS <= large.fit.n_points
+    assert small.warning.startswith(f"θ_ℓ = {small.value:.3g} rests on only "
+                                    f"{small.fit.n_points} values in its fit window")
+    assert f"fewer than {MIN_RELIABLE_POINTS}" in small.warning
+    assert small.to_dict()["warning"] == small.warning
+    assert large.warning is None and large.to_dict()["warning"] is None
+
+
 @pytest.mark.parametrize("method", ["mle", "lsq"])
 def test_both_estimators_recover_the_slope(method):
     rng = np.random.default_rng(11)

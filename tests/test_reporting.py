@@ -50,6 +50,11 @@ def test_report_of_one_run(jammed_2d, tmp_path):
         assert (path.parent / image).read_bytes()[:8] == PNG_SIGNATURE
     for name in summary["exponent_errors"]:          # too few small values in one packing
         assert "not fitted" in page
+    warned = [e["warning"] for e in summary["exponents"].values() if e["warning"]]
+    assert warned and summary["warnings"] == warned  # 128 disks: every fit rests on few values
+    for warning in warned:
+        assert f"> **Warning:** {warning}" in page
+    assert page.count("(few values)") == len(warned)
     assert f"{result.phi:.6f}" in page
 
 
@@ -64,6 +69,32 @@ def test_report_pools_an_ensemble(jammed_2d, tmp_path):
     fewer = calippso.report(jammed_2d, tmp_path / "fewer", n_bootstrap=0, max_history_figures=1)
     assert _images(fewer.read_text()).count("history/run_0.png") == 1
     assert "history/run_1.png" not in fewer.read_text()
+
+
+def test_contact_numbers_show_both_the_mean_and_2d(jammed_2d, tmp_path, monkeypatch):
+    """In a jammed packing mean z ≈ 2d: the 2d mark is a wide band under the thin mean line,
+    and their labels sit on opposite sides."""
+    from calippso.analysis import analyze
+    from calippso.reporting import figures
+
+    drawn = []
+    save = figures._save
+    monkeypatch.setattr(figures, "_save", lambda fig, path: drawn.append(fig) or save(fig, path))
+    analysis = analyze(jammed_2d, n_bootstrap=0)
+    figures.plot_contact_numbers(analysis, tmp_path / "contact_numbers.png")
+    ax = drawn[0].axes[0]
+    band, mean = sorted(ax.lines, key=lambda line: line.get_zorder())
+    assert band.get_xdata()[0] == 4 and mean.get_xdata()[0] == analysis.contacts.mean_z
+    assert band.get_linewidth() >= 4 * mean.get_linewidth()
+    assert band.get_zorder() > max(p.get_zorder() for p in ax.patches)  # over the bars
+    assert band.get_linestyle() != mean.get_linestyle()
+    labels = {t.get_text(): t for t in ax.texts}
+    iso, z = labels["2d = 4"], labels[f"mean z = {analysis.contacts.mean_z:.4f}"]
+    assert {iso.get_ha(), z.get_ha()} == {"left", "right"}
+    left = z if z.get_ha() == "right" else iso
+    assert left.get_position()[0] < min(4, analysis.contacts.mean_z)
+    tallest = max(p.get_height() for p in ax.patches)
+    assert ax.get_ylim()[1] > tallest  # room for the labels above the bars
 
 
 def test_report_refuses_bad_input(jammed_2d, tmp_path):

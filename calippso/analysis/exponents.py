@@ -46,17 +46,19 @@ from dataclasses import dataclass
 
 from ..result import JammingResult
 from ._inputs import as_results
-from .fits import FIT_MODELS, PowerLawFit, fit_cumulative_power_law
+from .fits import FIT_MODELS, MIN_RELIABLE_POINTS, PowerLawFit, fit_cumulative_power_law
 from .forces import DEFAULT_RULE, split_forces
 from .gaps import DEFAULT_MAX_GAP, pooled_gaps
 from .sample import PooledSample
 
-__all__ = ["REFERENCE_EXPONENTS", "UPPER", "MODEL", "SCAN_STEPS", "resolve_models", "Exponent", "exponent_from_sample",
-           "critical_exponents", "window_scan"]
+__all__ = ["REFERENCE_EXPONENTS", "SYMBOLS", "UPPER", "MODEL", "SCAN_STEPS", "resolve_models",
+           "Exponent", "exponent_from_sample", "critical_exponents", "window_scan"]
 
 #: Reference values (Charbonneau et al. 2014; θ_ℓ = 1 − 2γ from Lerner, Düring & Wyart 2013).
 REFERENCE_EXPONENTS: dict[str, float] = {"gamma": 0.41269, "theta_e": 0.42311,
                                          "theta_l": 0.17, "theta": 0.17}
+#: How each exponent is written in reports and warnings.
+SYMBOLS: dict[str, str] = {"gamma": "γ", "theta_e": "θ_e", "theta_l": "θ_ℓ", "theta": "θ"}
 #: Default upper end of each fit window (gap h, or force in units of the mean force).
 UPPER: dict[str, float] = {"gamma": 1e-2, "theta_e": 0.3, "theta_l": 0.3, "theta": 0.3}
 #: Default fit model of each exponent (`calippso.analysis.fits`; see the module notes).
@@ -97,15 +99,26 @@ class Exponent:
         """value − reference."""
         return self.value - self.reference
 
+    @property
+    def warning(self) -> str | None:
+        """Why the value is not a measurement: its fit window holds fewer than
+        `MIN_RELIABLE_POINTS` values (None when it holds enough)."""
+        points = self.fit.n_points
+        if points >= MIN_RELIABLE_POINTS:
+            return None
+        return (f"{SYMBOLS[self.name]} = {self.value:.3g} rests on only {points} values in its "
+                f"fit window (with fewer than {MIN_RELIABLE_POINTS} a fitted exponent can be "
+                f"off by 0.1 or more): pool more packings")
+
     def to_dict(self) -> dict:
-        """Plain numbers, for JSON."""
+        """Plain numbers, for JSON (and the `warning`, or None)."""
         return {"value": self.value, "interval": list(self.interval),
                 "reference": self.reference, "window": [self.fit.lower, self.fit.upper],
                 "points_in_window": self.fit.n_points, "confidence": self.fit.confidence,
                 "bootstrap_resamples": self.fit.n_bootstrap,
                 "bootstrap_over": self.fit.resampling, "estimator": self.fit.method,
                 "model": self.fit.model, "cutoff": self.fit.cutoff,
-                "power_law_p_value": self.fit.p_value}
+                "power_law_p_value": self.fit.p_value, "warning": self.warning}
 
 
 def resolve_models(model: str | dict[str, str] | None) -> dict[str, str]:

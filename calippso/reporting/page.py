@@ -71,10 +71,13 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
                          "| | |")
             continue
         low, high = e["interval"]
-        lines.append(f"| {symbol} ({what}) | {_fmt(e['value'])} | [{_fmt(low)}, {_fmt(high)}] "
+        value = _fmt(e["value"]) + (" (few values)" if e.get("warning") else "")
+        lines.append(f"| {symbol} ({what}) | {value} | [{_fmt(low)}, {_fmt(high)}] "
                      f"| {e['reference']:g} | [{_fmt(e['window'][0], 3)}, "
                      f"{_fmt(e['window'][1], 3)}] | {e['points_in_window']} "
                      f"| {_model(e)} | {e['bootstrap_over']} |")
+    for warning in summary.get("warnings", []):
+        lines += ["", f"> **Warning:** {warning}"]
     scans = summary.get("window_scan", {})
     if any(scans.values()):
         lines += ["", "Window check: each exponent refitted with the top of its window moved "

@@ -12,7 +12,7 @@ from ..analysis import Analysis
 from ..analysis.exponents import REFERENCE_EXPONENTS
 from ..result import JammingResult
 
-__all__ = ["run_record", "summary_dict", "write_json"]
+__all__ = ["fit_warnings", "run_record", "summary_dict", "write_json"]
 
 
 def run_record(result: JammingResult) -> dict:
@@ -30,10 +30,15 @@ def run_record(result: JammingResult) -> dict:
     }
 
 
+def fit_warnings(analysis: Analysis) -> list[str]:
+    """The warnings of the exponents fitted on too few values (`Exponent.warning`)."""
+    return [e.warning for e in analysis.exponents.values() if e.warning]
+
+
 def summary_dict(analysis: Analysis, results: list[JammingResult]) -> dict:
-    """Everything the JSON summary holds."""
+    """Everything the JSON summary holds, with the fit warnings under "warnings"."""
     return {**analysis.to_dict(), "reference_exponents": dict(REFERENCE_EXPONENTS),
-            "runs": [run_record(r) for r in results]}
+            "warnings": fit_warnings(analysis), "runs": [run_record(r) for r in results]}
 
 
 def _strict(value):
