@@ -18,11 +18,17 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
 from .ensemble import DISTRIBUTIONS, PROTOCOLS, make_diameters
 from .settings import INTERIOR_POINT_SOLVERS
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .packing import Packing
 
 __all__ = ["main", "cli"]
 
@@ -82,6 +88,23 @@ def stdout_to_stderr() -> Iterator[None]:
         sys.stdout.flush()
         os.dup2(saved, 1)
         os.close(saved)
+
+
+@contextlib.contextmanager
+def naming(path: Path | None) -> Iterator[None]:
+    """Put `path` in front of a ValueError raised inside the block, unless it names it already
+    (or `path` is None: no file).
+
+    Errors print one line naming the file at fault: a message from deep in the library
+    (an overlapping input found by `jam`, a packing a format cannot hold) does not know
+    which file it is about.
+    """
+    try:
+        yield
+    except ValueError as error:
+        if path is None or str(path) in str(error):
+            raise
+        raise ValueError(f"{path}: {error}") from error
 
 
 def output_options(command: Callable) -> Callable:
@@ -315,14 +338,18 @@ def generate_mls(
     import generators
 
     if input_path is not None:
-        start = calippso.read(input_path)
+        with naming(input_path):
+            start = calippso.read(input_path)
     else:
         sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
         start = generators.poisson(sizes, d, 0.3, seed)
-    generation = generators.closest_jamming(
-        start, final_rate=final_rate, seed=seed, progress=out.progress, checkpoint=checkpoint
-    )
-    return _generation_record("mls", generation, calippso.write(generation.packing, output))
+    with naming(input_path):
+        generation = generators.closest_jamming(
+            start, final_rate=final_rate, seed=seed, progress=out.progress, checkpoint=checkpoint
+        )
+    with naming(output):
+        written = calippso.write(generation.packing, output)
+    return _generation_record("mls", generation, written)
 
 
 @generate.command("spherocylinders")
@@ -402,74 +429,156 @@ def generate_spherocylinders(n, aspect_ratio, contraction_rate, initial_density,
 
 
 @cli.command()
-@click.argument(
-    "source", metavar="IN", type=click.Path(exists=True, dir_okay=False, path_type=Path)
-)
+@click.argument("source", metavar="IN", type=click.Path(exists=True, path_type=Path))
 @output_path()
 @click.option(
     "--backend",
     type=click.Choice(["auto", "povray", "matplotlib"]),
     default="auto",
     show_default=True,
-    help="POV-Ray (ray-traced; 'auto' uses it when installed) or matplotlib.",
+    help="POV-Ray (ray-traced, d = 3; 'auto' uses it when installed) or matplotlib.",
 )
 @click.option(
     "--colour-by",
     type=click.Choice(["orientation", "species"]),
-    default="orientation",
-    show_default=True,
-    help="Colour by axis direction (|u_x|, |u_y|, |u_z| as RGB) or by aspect ratio.",
+    default=None,
+    help="Spherocylinders: by axis direction (|u_x|, |u_y|, |u_z| as RGB; the default) or by "
+    "aspect ratio. Spheres are coloured by diameter (species), rattlers grey.",
 )
 @click.option("--size", type=click.IntRange(min=64), default=900, show_default=True,
               help="Width and height in pixels.")
 @output_options
 def render(source, output, backend, colour_by, size, out):
-    """Draw a spherocylinder packing (extended XYZ from `generate spherocylinders`) as a PNG."""
-    from generators import spherocylinders
+    """Draw a packing as a PNG with a title, a colour key and the box outline.
 
+    IN is a spherocylinder packing (extended XYZ from `generate spherocylinders`) or a
+    packing of spheres (d = 3) or disks (d = 2) in any readable format; a jammed result
+    (.npz, .h5, or .xyz written from one) shows its rattlers in grey.
+    """
     if output.suffix.lower() != ".png":
         raise click.BadParameter("the picture is a PNG: use a .png name", param_hint="'-o'")
+    with naming(source):
+        if _holds_spherocylinders(source):
+            return _render_spherocylinders(source, output, backend, colour_by or "orientation",
+                                           size)
+        if colour_by == "orientation":
+            raise click.BadParameter("spheres have no orientation: leave it out or use "
+                                     "'species'", param_hint="'--colour-by'")
+        return _render_spheres(source, output, backend, size)
+
+
+def _holds_spherocylinders(path: Path) -> bool:
+    """Whether `path` is extended XYZ with the axis and length columns of spherocylinders."""
+    from .io import SUFFIXES, extxyz
+
+    return (path.is_file() and SUFFIXES.get(path.suffix.lower()) == "extxyz"
+            and {"axis", "length"} <= extxyz.column_names(path))
+
+
+def _render_spherocylinders(source: Path, output: Path, backend: str, colour_by: str,
+                            size: int) -> tuple[dict, str]:
+    from generators import spherocylinders
+
     packing = spherocylinders.read_xyz(source)
     written = spherocylinders.render(packing, output, backend=backend, colour_by=colour_by,
                                      size=size)
-    record = {
-        "command": "render",
-        "input": str(source),
-        "output": str(written),
-        "n": packing.n,
-        "phi": packing.phi,
-        "nematic_order": packing.nematic_order(),
-    }
+    record = {"command": "render", "input": str(source), "output": str(written),
+              "particles": "spherocylinders", "n": packing.n, "phi": packing.phi,
+              "nematic_order": packing.nematic_order()}
     return record, f"{packing.n} spherocylinders, phi = {packing.phi:.6f}: {source} -> {written}"
 
 
-class LPProgress:
-    """A tqdm bar over LPs showing √Γ − 1, max |s| and the contact count (a `jam` callback).
+def _render_spheres(source: Path, output: Path, backend: str, size: int) -> tuple[dict, str]:
+    from .reporting.render import render_spheres
 
-    The bar appears with the first LP, so input rejected before any LP prints no bar.
+    packing, rattlers = _spheres_and_rattlers(source)
+    written = render_spheres(packing, output, rattlers=rattlers, backend=backend, size=size)
+    kind = "disks" if packing.d == 2 else "spheres"
+    record = {"command": "render", "input": str(source), "output": str(written),
+              "particles": kind, "n": packing.n, "d": packing.d, "phi": packing.phi,
+              "rattlers": None if rattlers is None else int(rattlers.sum())}
+    return record, f"{packing.n} {kind}, phi = {packing.phi:.6f}: {source} -> {written}"
+
+
+def _spheres_and_rattlers(source: Path) -> tuple[Packing, np.ndarray | None]:
+    """The packing in `source`, and its rattlers where the file holds a jammed result."""
+    import calippso
+    from .io import SUFFIXES, extxyz, read_result
+
+    kind = SUFFIXES.get(source.suffix.lower())
+    if kind in ("npz", "hdf5") and source.is_file():
+        with contextlib.suppress(ValueError):  # not a result file: read it as a packing
+            result = read_result(source)
+            return result.packing, result.rattlers
+    packing = calippso.read(source)
+    return packing, extxyz.read_rattlers(source) if kind == "extxyz" else None
+
+
+#: History stages that solve an LP: the ones `JammingResult.iterations` counts (the force
+#: clean-up after the loop is one more LP).
+LP_STAGES = frozenset({"lp", "cleanup"})
+#: How the LP bar names each stage; a stage missing here is shown by its own name.
+STAGE_LABELS = {"lp": "LP", "cleanup": "clean-up LP", "newton": "Newton",
+                "guess": "network guess"}
+
+
+class LPProgress:
+    """A tqdm bar over LPs showing the stage, √Γ − 1, max |s| and the contact count.
+
+    It is a `jam` callback, called once per history record. Only the records of LP stages
+    (`LP_STAGES`) tick the bar, so that its count is the number of LPs the summary reports;
+    another stage (the Newton stage, the network guess) shows as the "stage" label beside
+    its numbers. The bar appears with the first record, so input rejected before any LP
+    prints no bar.
     """
 
     def __init__(self, enabled: bool, desc: str = "LP") -> None:
         self._enabled = enabled
         self._desc = desc
         self._bar = None
+        self.lps = 0
 
-    def __call__(self, record: dict) -> None:
+    def __call__(self, record) -> None:
         if not self._enabled:
             return
+        stage = str(record["stage"])
+        self._show(record)
+        if stage in LP_STAGES:
+            self._tick(1)
+        else:
+            self._bar.refresh()
+
+    def catch_up(self, history) -> None:
+        """Count the LPs of a finished run that the callback never saw, and show its last record.
+
+        The force clean-up LP runs after the loop, without a callback; the history of a run
+        resumed from a checkpoint also holds the LPs solved before it.
+        """
+        if not self._enabled or not len(history):
+            return
+        self._show(history[-1])
+        self._tick(sum(str(stage) in LP_STAGES for stage in history["stage"]) - self.lps)
+
+    def _show(self, record) -> None:
+        """Open the bar if needed and put the record's stage and numbers beside it."""
         if self._bar is None:
             from tqdm.auto import tqdm
 
             self._bar = tqdm(desc=self._desc, unit=" LP", file=sys.stderr)
+        stage = str(record["stage"])
         self._bar.set_postfix(
             {
+                "stage": STAGE_LABELS.get(stage, stage),
                 "sqrt(G)-1": f"{record['sqrt_gamma_minus_1']:.1e}",
                 "max|s|": f"{record['max_displacement']:.1e}",
-                "contacts": record["n_contacts"],
+                "contacts": int(record["n_contacts"]),
             },
             refresh=False,
         )
-        self._bar.update(1)
+
+    def _tick(self, lps: int) -> None:
+        self.lps += lps
+        self._bar.update(lps)
 
     def close(self) -> None:
         if self._bar is not None:
@@ -477,12 +586,14 @@ class LPProgress:
 
 
 def jam_with_progress(packing, progress: bool, **options):
-    """`calippso.jam` with an LP progress bar."""
+    """`calippso.jam` with an LP progress bar whose count is the result's number of LPs."""
     import calippso
 
     bar = LPProgress(progress)
     try:
-        return calippso.jam(packing, callback=bar, **options)
+        result = calippso.jam(packing, callback=bar, **options)
+        bar.catch_up(result.history)
+        return result
     finally:
         bar.close()
 
@@ -554,19 +665,21 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
     """
     import calippso
 
-    packing = calippso.read(input_path)
-    result = jam_with_progress(
-        packing,
-        out.progress,
-        solver=solver,
-        interior_point=interior_point,
-        tol_gamma=tol_gamma,
-        tol_s=tol_s,
-        max_iters=max_iters,
-        precompress_pressure=precompress_pressure,
-        checkpoint=checkpoint,
-    )
-    written = calippso.write(result, output)
+    with naming(input_path):
+        packing = calippso.read(input_path)
+        result = jam_with_progress(
+            packing,
+            out.progress,
+            solver=solver,
+            interior_point=interior_point,
+            tol_gamma=tol_gamma,
+            tol_s=tol_s,
+            max_iters=max_iters,
+            precompress_pressure=precompress_pressure,
+            checkpoint=checkpoint,
+        )
+    with naming(output):
+        written = calippso.write(result, output)
     return _jam_record(result, input_path, written), f"{result.summary()}\n-> {written}"
 
 
@@ -576,7 +689,7 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
     metavar="RESULT...",
     nargs=-1,
     required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=click.Path(path_type=Path),
 )
 @click.option(
     "-o",
@@ -605,15 +718,59 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
 )
 @output_options
 def report(results, output, model, rule, out):
-    """Analyse one or more jammed results (.npz/.h5) and write a report to a folder."""
+    """Analyse jammed results (.npz/.h5 files, or folders of them such as an ensemble's) and
+    write one pooled report to a folder."""
+    files, loaded, skipped = read_results(results)
+    page = make_report(loaded, output, model=model, rule=rule)
+    warnings = json.loads((page.parent / "summary.json").read_text()).get("warnings", [])
+    record = {"command": "report", "results": [str(p) for p in files],
+              "skipped": [str(p) for p in skipped], "report": str(page), "warnings": warnings}
+    lines = [f"report of {len(loaded)} packing(s) -> {page}"]
+    if skipped:
+        lines.append(f"skipped {len(skipped)} file(s) that hold no result: "
+                     + ", ".join(p.name for p in skipped))
+    lines += [f"warning: {warning}" for warning in warnings]
+    return record, "\n".join(lines)
+
+
+#: Extensions of the result files `report` looks for in a folder.
+RESULT_SUFFIXES = (".npz", ".h5", ".hdf5")
+
+
+def read_results(paths: tuple[Path, ...]) -> tuple[list[Path], list, list[Path]]:
+    """Read the results named by `paths`: the files read, their results, the files skipped.
+
+    A file must be a result file. A folder (such as one made by ``calippso ensemble``) gives
+    its `RESULT_SUFFIXES` files, sorted by name; those that hold no result (the state files
+    of an unfinished run) are skipped.
+
+    Raises
+    ------
+    ValueError
+        A file that is not a result file, or a folder without one (the message names it).
+    """
     from .io import read_result
 
-    loaded = [read_result(path) for path in results]
-    page = make_report(loaded, output, model=model, rule=rule)
-    return (
-        {"command": "report", "results": [str(p) for p in results], "report": str(page)},
-        f"report of {len(loaded)} packing(s) -> {page}",
-    )
+    files, results, skipped = [], [], []
+    for path in paths:
+        if not path.is_dir():
+            with naming(path):
+                results.append(read_result(path))
+            files.append(path)
+            continue
+        before = len(results)
+        for candidate in sorted(p for p in path.iterdir()
+                                if p.is_file() and p.suffix.lower() in RESULT_SUFFIXES):
+            try:
+                results.append(read_result(candidate))
+            except ValueError:
+                skipped.append(candidate)
+            else:
+                files.append(candidate)
+        if len(results) == before:
+            raise ValueError(f"{path}: a folder with no result file "
+                             f"({', '.join(RESULT_SUFFIXES)}) in it")
+    return files, results, skipped
 
 
 def make_report(results: list, folder: Path, **options) -> Path:
@@ -645,8 +802,10 @@ def convert(source, target, out):
         with contextlib.suppress(ValueError):  # not a result file: read it as a packing
             obj = read_result(source)
     if obj is None:
-        obj = calippso.read(source)
-    written = calippso.write(obj, target)
+        with naming(source):
+            obj = calippso.read(source)
+    with naming(target):
+        written = calippso.write(obj, target)
     packing = getattr(obj, "packing", obj)
     kind = "result" if obj is not packing else "packing"
     return (
@@ -795,7 +954,8 @@ def ensemble(
 )
 @output_options
 def demo(n, seed, output, out):
-    """Generate (LS, p = 1e5), jam and report a small d = 3 packing (about a minute)."""
+    """Generate (LS, p = 1e5), jam and report a small d = 3 packing: about 25 s the first
+    time, while Numba compiles the generators, then about 13 s."""
     import calippso
     import generators
 

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 
 import calippso
 from calippso import Packing
-from calippso.cli import main
+from calippso.cli import LPProgress, cli, main
+from calippso.result import HISTORY_COLUMNS, history_from_records
 
 
 def _run(capfd, *argv) -> tuple[int, str, str]:
@@ -120,14 +123,36 @@ def test_render_draws_a_spherocylinder_packing(capfd, tmp_path):
     import matplotlib.image
 
     assert matplotlib.image.imread(picture).shape[:2] == (200, 200)
-    # a PNG name is required, and a file without orientations is refused on one line
+    # a PNG name is required
     code, _, err = _run(capfd, "render", rods, "-o", tmp_path / "rods.jpg")
     assert code == 2 and "png" in err
+
+
+def test_render_draws_spheres_from_any_readable_file(capfd, tmp_path, start_2d):
+    import matplotlib.image
+
+    assert _run(capfd, "jam", start_2d, "-o", tmp_path / "jammed.npz", "--quiet")[0] == 0
+    result = calippso.load_result(tmp_path / "jammed.npz")
+    assert _run(capfd, "convert", tmp_path / "jammed.npz", tmp_path / "jammed.xyz")[0] == 0
+    rattlers = int(result.rattlers.sum())
+    for source, known in ((tmp_path / "jammed.npz", rattlers),
+                          (tmp_path / "jammed.xyz", rattlers), (start_2d, None)):
+        picture = tmp_path / f"{source.stem}.png"
+        code, out, err = _run(capfd, "render", source, "-o", picture, "--size", "160", "--json")
+        assert code == 0, err
+        record = json.loads(out)
+        assert (record["particles"], record["n"], record["d"]) == ("disks", 32, 2)
+        assert record["rattlers"] == known
+        assert matplotlib.image.imread(picture).shape[:2] == (160, 160)
     spheres = tmp_path / "spheres.xyz"
-    calippso.write(calippso.Packing(np.array([[0.5, 0.5, 0.5], [2.0, 2.0, 2.0]]),
-                                    np.ones(2), np.full(3, 4.0)), spheres)
-    code, _, err = _run(capfd, "render", spheres, "-o", picture)
-    assert code == 1 and err.startswith("error:") and "missing" in err
+    calippso.write(Packing(np.array([[0.5, 0.5, 0.5], [2.0, 2.0, 2.0]]), np.ones(2), 4.0),
+                   spheres)
+    code, out, _ = _run(capfd, "render", spheres, "-o", tmp_path / "s.png", "--backend",
+                        "matplotlib", "--json")
+    assert code == 0 and json.loads(out)["particles"] == "spheres"
+    code, _, err = _run(capfd, "render", spheres, "-o", tmp_path / "s.png", "--colour-by",
+                        "orientation")
+    assert code == 2 and "spheres have no orientation" in err
 
 
 def test_jam_json_is_the_only_stdout(capfd, tmp_path, start_2d):
@@ -138,6 +163,39 @@ def test_jam_json_is_the_only_stdout(capfd, tmp_path, start_2d):
     assert "LP" in err  # the progress bar
     result = calippso.load_result(tmp_path / "jammed.npz")
     assert result.n_contacts == record["n_contacts"]
+
+
+def _bar_count(err: str) -> int:
+    """The LP count of the last state of the tqdm bar written to stderr."""
+    return int(re.findall(r"LP: (\d+) LP \[", err)[-1])
+
+
+def test_lp_bar_counts_the_lps_of_the_summary(capfd, tmp_path, start_2d):
+    code, out, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "jammed.npz", "--json")
+    assert code == 0
+    iterations = json.loads(out)["iterations"]
+    assert _bar_count(err) == iterations
+    stages = calippso.load_result(tmp_path / "jammed.npz").history["stage"].tolist()
+    assert stages.count("lp") + stages.count("cleanup") == iterations
+    assert "newton" in stages and "stage=Newton" in err  # shown as a label, not as an LP
+
+
+def _record(stage: str) -> dict:
+    return {name: stage if name == "stage" else 1 for name in HISTORY_COLUMNS}
+
+
+def test_lp_bar_ticks_only_for_lp_stages(capfd):
+    """The network guess and the Newton stage are labels; the clean-up LP (seen only in the
+    finished history) is one more LP, as in `JammingResult.iterations`."""
+    records = [_record(stage) for stage in ("guess", "lp", "lp", "newton", "cleanup")]
+    bar = LPProgress(True)
+    for record in records[:-1]:  # jam's callback never sees the clean-up LP
+        bar(record)
+    assert bar.lps == 2 and "stage=network guess" in capfd.readouterr().err
+    bar.catch_up(history_from_records(records))
+    bar.close()
+    err = capfd.readouterr().err
+    assert bar.lps == 3 and _bar_count(err) == 3 and "stage=clean-up LP" in err
 
 
 def test_quiet_jam_prints_only_the_summary(capfd, tmp_path, start_2d):
@@ -155,9 +213,29 @@ def test_convert_keeps_a_full_result(capfd, tmp_path, start_2d):
 
 
 def _overlapping(tmp_path):
+    """Six disks (enough to jam in d = 2) of which the first two overlap."""
     path = tmp_path / "overlap.npz"
-    calippso.write(Packing([[1.0, 1.0], [1.5, 1.0], [3.0, 3.0]], [1.0, 1.0, 1.0], 6.0), path)
+    positions = [[1.0, 1.0], [1.5, 1.0], [3.0, 3.0], [4.5, 1.0], [1.0, 4.5], [4.5, 4.5]]
+    calippso.write(Packing(positions, np.ones(6), 6.0), path)
     return path
+
+
+def test_errors_from_jamming_a_file_name_it(tmp_path):
+    path = _overlapping(tmp_path)
+    run = CliRunner().invoke(cli, ["jam", str(path), "-o", str(tmp_path / "out.npz")])
+    assert run.exit_code == 1 and isinstance(run.exception, ValueError)
+    assert str(run.exception).startswith(f"{path}: overlapping particles in the input")
+    assert not (tmp_path / "out.npz").exists()
+
+
+def test_errors_from_reading_or_writing_a_file_name_it(tmp_path):
+    d4 = _four_d(tmp_path)
+    xyz = tmp_path / "d4.xyz"
+    for argv, named, message in ((["convert", d4, xyz], xyz, "extended XYZ holds d <= 3"),
+                                 (["render", d4, "-o", tmp_path / "d4.png"], d4, "d = 4")):
+        run = CliRunner().invoke(cli, list(map(str, argv)))
+        assert isinstance(run.exception, ValueError), run.output
+        assert str(run.exception).startswith(f"{named}: ") and message in str(run.exception)
 
 
 def _four_d(tmp_path):
@@ -236,6 +314,48 @@ def test_report_and_demo(capfd, tmp_path):
     code, out, err = _run(capfd, "report", tmp_path / "demo" / "jammed.npz", "-o",
                           tmp_path / "bad", "--model", "exponential")
     assert code != 0 and "exponential" in err
+
+
+def test_report_of_a_folder_pools_its_results(capfd, tmp_path, start_2d):
+    folder = tmp_path / "ensemble"
+    for name in ("packing_000000.npz", "packing_000001.h5"):
+        assert _run(capfd, "jam", start_2d, "-o", folder / name, "--quiet")[0] == 0
+    calippso.write(calippso.read(start_2d), folder / "state_000002_jam.npz")  # no result
+    (folder / "summary.csv").write_text("seed,state\n")
+    code, out, err = _run(capfd, "report", folder, "-o", tmp_path / "report", "--json")
+    assert code == 0, err
+    record = json.loads(out)
+    assert record["results"] == [str(folder / "packing_000000.npz"),
+                                 str(folder / "packing_000001.h5")]
+    assert record["skipped"] == [str(folder / "state_000002_jam.npz")]
+    assert json.loads((tmp_path / "report" / "summary.json").read_text())["packings"] == 2
+    (tmp_path / "empty").mkdir()
+    code, _, err = _run(capfd, "report", tmp_path / "empty", "-o", tmp_path / "none")
+    assert code == 1 and err == f"error: {tmp_path / 'empty'}: a folder with no result file " \
+                                "(.npz, .h5, .hdf5) in it\n"
+
+
+def test_report_warns_when_a_fit_rests_on_few_values(capfd, tmp_path):
+    from configurations import random_sequential_addition
+
+    from calippso.analysis.fits import MIN_RELIABLE_POINTS
+
+    calippso.jam(random_sequential_addition(128, 2, 0.5, seed=1)).save(tmp_path / "jammed.npz")
+    code, out, err = _run(capfd, "report", tmp_path / "jammed.npz", "-o", tmp_path / "report")
+    assert code == 0, err
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())
+    few = {name: e["points_in_window"] for name, e in summary["exponents"].items()
+           if e["points_in_window"] < MIN_RELIABLE_POINTS}
+    assert few and len(summary["warnings"]) == len(few)  # 128 disks: every fit is flagged
+    for name, points in few.items():
+        assert summary["exponents"][name]["warning"] in summary["warnings"]
+        assert f"rests on only {points} values" in summary["exponents"][name]["warning"]
+    for warning in summary["warnings"]:
+        assert f"warning: {warning}\n" in out
+        assert f"> **Warning:** {warning}" in (tmp_path / "report" / "report.md").read_text()
+    code, out, _ = _run(capfd, "report", tmp_path / "jammed.npz", "-o", tmp_path / "again",
+                        "--json")
+    assert json.loads(out)["warnings"] == summary["warnings"]
 
 
 def test_console_entry_points():

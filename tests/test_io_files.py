@@ -81,7 +81,8 @@ def _not_npz_files(folder) -> dict[str, str]:
     (folder / "broken.npz").write_bytes(b"PK\x03\x04 truncated")
     np.savez(folder / "objects.npz", positions=np.array([{"a": 1}], dtype=object))
     archive = "not a calippso/numpy .npz archive"
-    return {"text.npz": f"{archive} (it is not a zip file)", "empty.npz": f"{archive} (it is empty)",
+    return {"text.npz": f"{archive} (it is not a zip file)",
+            "empty.npz": f"{archive} (it is empty)",
             "array.npz": f"{archive} (it is a single numpy array, a .npy file)",
             "broken.npz": "unreadable .npz file (damaged zip:",
             "objects.npz": "not a calippso .npz file (it holds pickled Python objects"}

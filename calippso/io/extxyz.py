@@ -25,7 +25,10 @@ import numpy as np
 from ..packing import Packing
 from ..atomic import atomic_path
 
-__all__ = ["read", "write"]
+__all__ = ["column_names", "read", "read_rattlers", "write"]
+
+#: The columns of a plain XYZ file (no Properties in the header).
+_DEFAULT_PROPERTIES = "species:S:1:pos:R:3"
 
 
 def write(obj, path: Path) -> Path:
@@ -131,7 +134,7 @@ def read(path: Path) -> Packing:
     d = int(fields.get("dimension", 2 if pbc[2:3] == ["F"] else 3))
     if d not in (2, 3):
         raise ValueError(f"{path}, line 2: dimension={d}, expected 2 or 3")
-    columns = _columns(fields.get("properties", "species:S:1:pos:R:3"), path)
+    columns = _columns(fields.get("properties", _DEFAULT_PROPERTIES), path)
     if "pos" not in columns:
         raise ValueError(f"{path}, line 2: no pos column in Properties")
     size = "diameter" if "diameter" in columns else "radius" if "radius" in columns else None
@@ -155,3 +158,34 @@ def read(path: Path) -> Packing:
     except ValueError as error:
         raise ValueError(f"{path}: non-numeric position or size ({error})") from None
     return Packing(positions, diameters, np.diag(lattice)[:d].copy())
+
+
+def column_names(path: Path) -> set[str]:
+    """The names (lower case) of the columns an extended XYZ file declares in Properties.
+
+    Raises
+    ------
+    ValueError
+        If the file has no header line or the header is not extended XYZ.
+    """
+    path = Path(path)
+    with open(path, encoding="utf-8", errors="replace") as stream:
+        stream.readline()
+        header = stream.readline()
+    if not header:
+        raise ValueError(f"{path}, line 2: no extended XYZ header")
+    fields = _header(header, path)
+    return set(_columns(fields.get("properties", _DEFAULT_PROPERTIES), path))
+
+
+def read_rattlers(path: Path) -> np.ndarray | None:
+    """The ``rattler`` column (T/F) written with a `JammingResult`, or None without one."""
+    path = Path(path)
+    lines = path.read_text().splitlines()
+    columns = _columns(_header(lines[1], path).get("properties", _DEFAULT_PROPERTIES), path)
+    if "rattler" not in columns:
+        return None
+    start, _ = columns["rattler"]
+    n = int(lines[0].strip())
+    return np.array([line.split()[start].upper() in ("T", "TRUE", "1")
+                     for line in lines[2:2 + n]])
