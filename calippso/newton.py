@@ -29,11 +29,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import SuperLU, splu
 
 from .packing import minimum_image, wrap
+from .sparse_lu import Factors, factorize
 
-__all__ = ["Refinement", "refine_isostatic", "factorize"]
+__all__ = ["Refinement", "refine_isostatic"]
 
 #: Newton stops once the largest correction is below this (mean diameters); quadratic
 #: convergence then leaves an error far below round-off.
@@ -117,19 +117,6 @@ def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_col: np.ndarray
         values.append(sign * gradient[free].ravel())
     return sp.csc_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(m, n_unknowns))
-
-
-def factorize(matrix: sp.csc_matrix) -> SuperLU | None:
-    """Sparse LU factors of a square Jacobian (SuperLU, COLAMD column ordering).
-
-    COLAMD gave the least fill and the fastest factorisation of contact Jacobians among
-    SuperLU's orderings (`bench/newton_factorization.py`). Returns None when the matrix is
-    exactly singular.
-    """
-    try:
-        return splu(matrix, permc_spec="COLAMD")
-    except RuntimeError:  # exactly singular: the network has a floppy mode
-        return None
 
 
 def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -227,7 +214,7 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         residual=worst)
 
 
-def _self_stress(factors: SuperLU, jacobian: sp.csc_matrix) -> np.ndarray | None:
+def _self_stress(factors: Factors, jacobian: sp.csc_matrix) -> np.ndarray | None:
     """The solution y of Jᵀ y = (0, …, 0, −1), from factors of a nearby Jacobian.
 
     Iterative refinement: y ← y + F⁻ᵀ (b − Jᵀ y) with F the given factors, until the

@@ -6,6 +6,7 @@ from configurations import random_sequential_addition
 
 from calippso import jam
 from calippso.newton import refine_isostatic
+from calippso.sparse_lu import pardiso_available
 from calippso.packing import minimum_image
 
 
@@ -94,3 +95,37 @@ def test_a_round_off_force_does_not_certify():
     assert not replace(refinement, forces=np.array([1.0, 4e-16, 2.0])).positive
     assert not replace(refinement, forces=np.array([1.0, -1e-3, 2.0])).positive
     assert replace(refinement, forces=np.array([1.0, 3 * MIN_FORCE_RATIO, 2.0])).positive
+
+
+@pytest.mark.skipif(not pardiso_available(), reason="pypardiso (the pardiso extra) is absent")
+def test_pardiso_and_superlu_give_the_same_jamming_point(jammed, monkeypatch):
+    """The Newton stage with PARDISO (taken from `PARDISO_MIN_UNKNOWNS` on) and with SuperLU."""
+    import calippso.sparse_lu as sparse_lu
+
+    _, result = jammed
+    packing = result.packing
+    stable = ~result.rattlers
+    shrunk = packing.diameters * (1 - 1e-6)
+    i, j = result.contacts.T
+    superlu = refine_isostatic(packing.positions, shrunk, packing.box, i, j, stable)
+    monkeypatch.setattr(sparse_lu, "PARDISO_MIN_UNKNOWNS", 0)
+    pardiso = refine_isostatic(packing.positions, shrunk, packing.box, i, j, stable)
+    assert superlu is not None and pardiso is not None and pardiso.positive
+    np.testing.assert_allclose(pardiso.positions, superlu.positions, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(pardiso.forces, superlu.forces, rtol=1e-10)
+
+
+def test_chord_steps_reuse_one_factorisation(jammed):
+    """From a state 1e-6 away, the first factors carry Newton to round-off and serve the
+    certificate too."""
+    _, result = jammed
+    packing = result.packing
+    stable = ~result.rattlers
+    moved = packing.positions + 1e-7 * np.random.default_rng(5).standard_normal(
+        packing.positions.shape)
+    moved[np.flatnonzero(stable)[0]] = packing.positions[np.flatnonzero(stable)[0]]
+    i, j = result.contacts.T
+    refined = refine_isostatic(moved, packing.diameters * (1 - 1e-6), packing.box, i, j,
+                               stable)
+    assert refined is not None and refined.positive and refined.residual < 1e-13
+    assert refined.factorizations == 1 and refined.iterations >= 2

@@ -1,0 +1,207 @@
+"""Network first: a near-jammed input's own contact network, certified by Newton with no LP.
+
+A near-jammed input is a jammed packing with every diameter shrunk by 2e-7 and every position
+moved by 1e-9. The network-first stage must give exactly what the LP path gives from the same
+input (same contacts, φ_J within 1e-10, forces within 1e-8), and an input that only looks
+near-jammed (a crystal, a network with a negative self-stress, one whose jamming point would
+overlap another pair) must fall back to the LPs and end as the LP path does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import generators
+from calippso import JammingError, Packing, jam
+from calippso.network_guess import guess_networks
+from calippso.neighbors import NeighborSearch
+
+import lattices
+from test_extremes import assert_jammed
+
+#: Relative shrink of the diameters, and size of the random displacements (mean diameters),
+#: that make a near-jammed input from a jammed packing.
+SHRINK = 2e-7
+MOVE = 1e-9
+
+
+def near_jammed(packing: Packing, seed: int = 0) -> Packing:
+    """`packing` shrunk by `SHRINK` and moved by `MOVE` (seeded Gaussian displacements)."""
+    rng = np.random.default_rng(seed)
+    moved = packing.positions + MOVE * packing.mean_diameter * rng.standard_normal(
+        packing.positions.shape)
+    return Packing(moved, packing.diameters * (1.0 - SHRINK), packing.box)
+
+
+def jammed_from_ls(d: int, n: int, polydisperse: bool, pressure: float = 1e7):
+    """An LS packing compressed to `pressure` (log-normal sizes of width 0.2 if polydisperse),
+    and its jammed packing by the LP path (network first off)."""
+    sizes = (generators.diameters.lognormal(n, 0.2, seed=d) if polydisperse
+             else generators.diameters.monodisperse(n))
+    start = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
+                                              seed=d).packing
+    return start, jam(start, network_first="off")
+
+
+CASES = [
+    pytest.param(2, 64, True, id="d2-poly"),
+    pytest.param(3, 64, False, id="d3-mono"),
+    pytest.param(3, 64, True, id="d3-poly"),
+    pytest.param(4, 64, False, id="d4-mono"),
+    pytest.param(4, 256, True, id="d4-poly", marks=pytest.mark.slow),
+    pytest.param(5, 256, False, id="d5-mono", marks=pytest.mark.slow),
+]
+
+
+@pytest.mark.parametrize("d, n, polydisperse", CASES)
+def test_certified_network_is_what_the_lp_path_gives(d, n, polydisperse):
+    _, source = jammed_from_ls(d, n, polydisperse)
+    start = near_jammed(source.packing)
+    first = jam(start)
+    lp_only = jam(start, network_first="off", newton=False)
+    assert first.iterations == 0 and first.converged
+    assert list(first.history["stage"]) == ["guess", "newton"]
+    assert first.status.startswith("Jammed: the input's own contact network certified")
+    assert first.solver == "none"
+    assert_jammed(first)
+    assert first.force_balance < 1e-12
+    assert lp_only.iterations >= 1 and lp_only.isostatic
+    np.testing.assert_array_equal(first.contacts, lp_only.contacts)
+    np.testing.assert_array_equal(first.rattlers, lp_only.rattlers)
+    assert abs(first.phi - lp_only.phi) < 1e-10
+    np.testing.assert_allclose(first.forces, lp_only.forces, rtol=0, atol=1e-8)
+    # the jamming point of the source packing, found again
+    np.testing.assert_array_equal(first.contacts, source.contacts)
+    assert abs(first.phi - source.phi) < 1e-10
+
+
+def test_rattlers_are_kept_out_of_the_certified_network():
+    _, source = jammed_from_ls(2, 64, True)
+    assert source.rattlers.sum() >= 3
+    first = jam(near_jammed(source.packing))
+    assert first.iterations == 0
+    np.testing.assert_array_equal(first.rattlers, source.rattlers)
+    assert not np.isin(np.flatnonzero(first.rattlers), first.contacts).any()
+
+
+@pytest.fixture(scope="module")
+def d3_source():
+    return jammed_from_ls(3, 64, False)
+
+
+def test_a_hint_is_tried_first(d3_source):
+    _, source = d3_source
+    result = jam(near_jammed(source.packing), network=source.contacts)
+    assert result.iterations == 0
+    assert "given as a hint" in result.status
+    np.testing.assert_array_equal(result.contacts, source.contacts)
+
+
+def test_a_hint_with_extra_near_contacts_is_trimmed(d3_source):
+    """Two extra pairs, the nearest non-contacts: the pairs with the largest gaps go first."""
+    _, source = d3_source
+    start = near_jammed(source.packing)
+    search = NeighborSearch(start.positions, start.diameters, start.box)
+    close = search.pairs_within(float(start.diameters.max()) * 1.2)
+    contact_keys = source.contacts[:, 0] * start.n + source.contacts[:, 1]
+    outside = ~np.isin(close.i * start.n + close.j, contact_keys)
+    stable = ~source.rattlers[close.i] & ~source.rattlers[close.j]
+    candidates = np.flatnonzero(outside & stable)
+    extra = candidates[np.argsort(close.gaps[candidates])[:2]]
+    hint = np.concatenate([source.contacts, np.column_stack([close.i[extra], close.j[extra]])])
+    result = jam(start, network=hint)
+    assert result.iterations == 0
+    assert "2 near-contact(s) dropped" in result.status
+    np.testing.assert_array_equal(result.contacts, source.contacts)
+
+
+def test_a_crystal_falls_back_to_the_lps():
+    """FCC at contact: every gap is zero, the touching network is hyperstatic by far more
+    than a few contacts, so no candidate is tried and the LPs end as without the stage."""
+    crystal = lattices.fcc(2, fill=1.0)
+    assert guess_networks(NeighborSearch(crystal.positions, crystal.diameters, crystal.box),
+                          3) == []
+    result = jam(crystal)
+    off = jam(crystal, network_first="off")
+    assert "guess" not in set(result.history["stage"])
+    assert "holds no isostatic contact network" in result.status
+    assert result.iterations == off.iterations >= 1
+    np.testing.assert_array_equal(result.contacts, off.contacts)
+    assert result.phi == off.phi
+
+
+@pytest.fixture(scope="module")
+def compressed():
+    """An LS state at reduced pressure 1e5 (no isostatic network in its gap spectrum), its
+    LP-path result, and wrong hints: its jammed network with one contact swapped for a near
+    non-contact, keyed by why the Newton certificate refused them."""
+    start, source = jammed_from_ls(3, 64, False, pressure=1e5)
+    packing = source.packing
+    search = NeighborSearch(packing.positions, packing.diameters, packing.box)
+    close = search.pairs_within(float(packing.diameters.max()) * 1.05)
+    keys = set(map(tuple, source.contacts.tolist()))
+    order = np.argsort(close.gaps)
+    outside = [(int(close.i[k]), int(close.j[k])) for k in order
+               if (int(close.i[k]), int(close.j[k])) not in keys
+               and not source.rattlers[close.i[k]] and not source.rattlers[close.j[k]]]
+    wrong: dict[str, np.ndarray] = {}
+    for swapped in range(source.contacts.shape[0]):
+        for pair in outside[:6]:
+            hint = source.contacts.copy()
+            hint[swapped] = pair
+            try:
+                jam(start, network=hint, network_first="require")
+            except JammingError as error:
+                reason = ("force" if "non-positive force" in str(error) else
+                          "overlap" if "would overlap" in str(error) else "other")
+                wrong.setdefault(reason, hint)
+        if {"force", "overlap"} <= set(wrong):
+            break
+    return start, jam(start, network_first="off"), wrong
+
+
+def test_an_lp_start_has_no_candidate_network(compressed):
+    start, off, _ = compressed
+    with pytest.raises(JammingError, match="network_first='require': no network guessed"):
+        jam(start, network_first="require")
+    result = jam(start)
+    assert result.iterations == off.iterations
+    np.testing.assert_array_equal(result.contacts, off.contacts)
+
+
+@pytest.mark.parametrize("reason, note", [("force", "a non-positive force"),
+                                          ("overlap", "other pair(s) would overlap")])
+def test_a_refused_network_falls_back_to_the_lps(compressed, reason, note):
+    start, off, wrong = compressed
+    assert reason in wrong, f"no swapped contact gave a refusal by {reason}"
+    result = jam(start, network=wrong[reason])
+    assert f"hint: {note}" in result.status or note in result.status
+    assert result.history["stage"][0] == "guess" and result.iterations == off.iterations
+    np.testing.assert_array_equal(result.contacts, off.contacts)
+    assert result.phi == pytest.approx(off.phi, rel=1e-14)
+    np.testing.assert_allclose(result.forces, off.forces, rtol=1e-12)
+    assert result.isostatic and result.force_balance < 1e-12
+
+
+@pytest.mark.parametrize("network, message", [
+    (np.array([1, 2, 3]), r"\(M, 2\) integer array"),
+    (np.array([[0.0, 1.0]]), r"\(M, 2\) integer array"),
+    (np.array([[0, 10_000]]), r"indices outside \[0, 64\)"),
+    (np.array([[3, 3]]), "pairs a particle with itself"),
+])
+def test_a_malformed_hint_is_refused(d3_source, network, message):
+    _, source = d3_source
+    with pytest.raises(ValueError, match=message):
+        jam(source.packing, network=network)
+
+
+def test_network_first_off_never_guesses(d3_source):
+    _, source = d3_source
+    result = jam(near_jammed(source.packing), network_first="off")
+    assert "guess" not in set(result.history["stage"]) and result.iterations >= 1
+
+
+def test_unknown_mode_is_refused():
+    with pytest.raises(ValueError, match="unknown network_first 'maybe'"):
+        jam(lattices.fcc(2), network_first="maybe")
