@@ -385,6 +385,7 @@ class _Jammer:
             check_interior_point(settings.interior_point)
         self.failed_networks: set[str] = set()
         self.newton_failure = ""          # why the last Newton stage was not certified
+        self.discarded_seconds = 0.0      # solver time of attempts whose LP was not taken
         self.retried_lps = 0
         self.stalled = False
         self.forced = np.zeros((0, 2), dtype=np.int64)
@@ -459,9 +460,11 @@ class _Jammer:
         warm_start = self.basis if self.settings.warm_start else None
         for name, bound in attempts:
             lp = build_lp(self._pairs(search, bound, stable, forced), self.n, self.d, bound, fixed)
+            began = time.perf_counter()
             try:
                 solution = get_solver(name)(lp, self.settings, warm_start=warm_start)
             except (SolverError, ValueError, RuntimeError, MemoryError) as error:
+                self.discarded_seconds += time.perf_counter() - began
                 failures.append(f"{name} (bound {bound:.1e}): {type(error).__name__}: {error}")
                 warm_start = None
                 continue
@@ -478,6 +481,7 @@ class _Jammer:
                 taken.offered_warm_start = warm_start is not None
                 return taken
             failures.append(f"{name} (bound {bound:.1e}): {problem}")
+            self.discarded_seconds += solution.seconds
             warm_start = None   # retries start from scratch
         raise self._fail(f"every LP backend failed at LP {self.lps_solved + 1}: "
                          + "; ".join(failures))
@@ -491,11 +495,14 @@ class _Jammer:
         crossover ends near the centre of the optimal face and keeps them. Keeps the warm
         solution if the cold one fails its checks. Called only when `_Step.needs_cold_resolve`.
         """
+        began = time.perf_counter()
         try:
             cold = get_solver(name)(lp, self.settings, warm_start=None)
         except (SolverError, ValueError, RuntimeError, MemoryError):
+            self.discarded_seconds += time.perf_counter() - began
             return taken
         if _solution_problem(lp, cold) is not None:
+            self.discarded_seconds += cold.seconds
             return taken
         return self._analyse(lp, replace(cold, seconds=cold.seconds + taken.solution.seconds),
                              stable)
@@ -530,7 +537,7 @@ class _Jammer:
         record = {
             "stage": stage,
             "wall_time": time.perf_counter() - self.start,
-            "solver_time": step.solution.seconds,
+            "solver_time": step.solution.seconds + self.discarded_seconds,
             "sqrt_gamma_minus_1": float(np.sqrt(1.0 + step.solution.gamma) - 1.0),
             "max_displacement": step.max_displacement,
             "rows": step.lp.n_rows,
@@ -543,6 +550,7 @@ class _Jammer:
             "phi": self.packing().phi,
         }
         self.records.append(record)
+        self.discarded_seconds = 0.0
         if self.settings.verbose:
             self._print(record)
         return record
@@ -593,6 +601,7 @@ class _Jammer:
                 self.forced = np.unique(np.concatenate([self.forced, new]), axis=0)
                 self.notes.append(f"{int(outside.sum())} pair(s) outside the LP overlapped "
                                   f"after LP {self.lps_solved + 1}; re-solved with them")
+                self.discarded_seconds += step_result.solution.seconds
                 continue
             self.positions, self.diameters, self.search = positions, diameters, search
             min_gap = float(close.gaps.min()) if len(close) else float("inf")

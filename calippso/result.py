@@ -41,7 +41,8 @@ HISTORY_COLUMNS: dict[str, tuple[object, str]] = {
     "stage": ("U8", "'guess' (a contact network read from the input, before any LP), "
                     "'lp', 'newton' (contact equations solved and certified) or 'cleanup'"),
     "wall_time": (np.float64, "seconds since the call to jam, at the end of this iteration"),
-    "solver_time": (np.float64, "seconds spent inside the LP solver for this iteration"),
+    "solver_time": (np.float64, "seconds inside the LP solver for this iteration, retried and "
+                                "discarded attempts included"),
     "sqrt_gamma_minus_1": (np.float64, "√Γ* − 1, the relative diameter growth of this LP"),
     "max_displacement": (np.float64, "max |s_iμ| over non-rattlers, in mean diameters"),
     "rows": (np.int64, "pair constraints (rows) in the LP"),

@@ -182,3 +182,23 @@ def test_error_from_the_first_lp_keeps_the_input(monkeypatch, start):
     np.testing.assert_allclose(caught.value.packing.positions, start.wrapped().positions,
                                rtol=0, atol=1e-15 * start.box.max())
     np.testing.assert_allclose(caught.value.packing.diameters, start.diameters, rtol=1e-15)
+
+
+def test_time_of_refused_attempts_is_counted(monkeypatch, start):
+    """Attempts that fail still took solver time: it goes into the history record of the LP
+    that was finally taken, so that the solver time adds up to the time spent solving."""
+    pause = 0.2
+
+    def slow_crash(solution):
+        import time
+
+        time.sleep(pause)
+        raise RuntimeError("injected backend crash after a pause")
+
+    injector = Injector("highs", slow_crash, start=3, stop=3)
+    monkeypatch.setattr("calippso.ilp.get_solver", injector)
+    result = jam(start, callback=injector.callback)
+    lps = result.history[result.history["stage"] == "lp"]
+    assert injector.calls.count(("highs", 3)) == 2
+    assert lps["solver_time"][2] >= 2 * pause
+    assert np.all(np.delete(lps["solver_time"], 2) < pause)
