@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import click
 
 from .ensemble import DISTRIBUTIONS, PROTOCOLS, make_diameters
-from .settings import INTERIOR_POINT_SOLVERS
+from .settings import INTERIOR_POINT_SOLVERS, NETWORK_FIRST_MODES
 
 if TYPE_CHECKING:
     import numpy as np
@@ -500,6 +500,19 @@ def _render_spheres(source: Path, output: Path, backend: str, size: int) -> tupl
     return record, f"{packing.n} {kind}, phi = {packing.phi:.6f}: {source} -> {written}"
 
 
+def _contacts_of(path: Path) -> np.ndarray:
+    """The (M, 2) 'contacts' array of an .npz file (a network hint for `jam`)."""
+    import numpy as np
+
+    from .io.npz import load_arrays
+
+    arrays = load_arrays(path)
+    if "contacts" not in arrays:
+        raise ValueError("no 'contacts' array in this file (expected a jammed result, or a "
+                         "start that carries its contact network)")
+    return np.asarray(arrays["contacts"])
+
+
 def _spheres_and_rattlers(source: Path) -> tuple[Packing, np.ndarray | None]:
     """The packing in `source`, and its rattlers where the file holds a jammed result."""
     import calippso
@@ -655,16 +668,36 @@ def _jam_record(result, source, output: Path | None) -> dict:
     help="First compress a loose input by Lubachevsky-Stillinger MD to this reduced pressure "
     "(e.g. 1e5), then run the LP loop.",
 )
+@click.option(
+    "--network-first",
+    type=click.Choice(NETWORK_FIRST_MODES),
+    default="auto",
+    show_default=True,
+    help="Before any LP, certify the input's own contact network by Newton (auto: then LPs "
+    "if that fails; off: LPs only; require: fail instead of running an LP).",
+)
+@click.option(
+    "--network",
+    "network_path",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    default=None,
+    help="An .npz file whose 'contacts' array (M, 2) is tried first as the contact network "
+    "(a jammed result, or a start that carries its network).",
+)
 @checkpoint_option
 @output_options
 def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
-        precompress_pressure, checkpoint, out):
+        precompress_pressure, network_first, network_path, checkpoint, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
     """
     import calippso
 
+    network = None
+    if network_path is not None:
+        with naming(network_path):
+            network = _contacts_of(network_path)
     with naming(input_path):
         packing = calippso.read(input_path)
         result = jam_with_progress(
@@ -676,6 +709,8 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
             tol_s=tol_s,
             max_iters=max_iters,
             precompress_pressure=precompress_pressure,
+            network_first=network_first,
+            network=network,
             checkpoint=checkpoint,
         )
     with naming(output):

@@ -390,3 +390,24 @@ def test_jam_precompress_option(capfd, tmp_path, start_2d):
     assert record["converged"] and record["isostatic"]
     assert "compressed by Lubachevsky-Stillinger" in calippso.load_result(
         tmp_path / "jammed.npz").status
+
+
+def test_jam_network_first_options(capfd, tmp_path, start_2d):
+    """A jammed result jammed again with its own network as the hint: no LP; 'require' on a
+    loose start fails on one line; a hint file without contacts is named in the error."""
+    jammed = tmp_path / "jammed.npz"
+    assert _run(capfd, "jam", start_2d, "-o", jammed, "--quiet")[0] == 0
+    code, out, _ = _run(capfd, "jam", jammed, "-o", tmp_path / "again.npz", "--network", jammed,
+                        "--network-first", "require", "--json", "--quiet")
+    assert code == 0
+    record = json.loads(out)
+    assert record["iterations"] == 0 and record["isostatic"]
+    again = calippso.load_result(tmp_path / "again.npz")
+    assert "given as a hint" in again.status
+    np.testing.assert_array_equal(again.contacts, calippso.load_result(jammed).contacts)
+    code, _, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "x.npz", "--network-first",
+                        "require", "--quiet")
+    assert code != 0 and "network_first='require'" in err and len(err.strip().splitlines()) == 1
+    code, _, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "y.npz", "--network",
+                        start_2d, "--quiet")
+    assert code != 0 and str(start_2d) in err and "no 'contacts' array" in err
