@@ -635,9 +635,10 @@ def _jam_record(result, source, output: Path | None) -> dict:
 @click.option(
     "--interior-point",
     type=click.Choice(INTERIOR_POINT_SOLVERS),
-    default="ipx",
+    default="auto",
     show_default=True,
-    help="HiGHS interior point for LPs solved from scratch (hipo needs calippso[hipo]).",
+    help="HiGHS interior point for LPs solved from scratch (auto: HiPO for large LPs when "
+    "installed, else IPX; hipo needs calippso[hipo]).",
 )
 @click.option(
     "--tol-gamma",

@@ -379,7 +379,7 @@ class _Jammer:
         self.records: list[dict] = []
         self.notes: list[str] = list(notes or [])
         self.solver_name = settings.solver
-        if (settings.interior_point != "ipx"   # every HiGHS build has IPX
+        if (settings.interior_point == "hipo"   # every HiGHS build has IPX; "auto" adapts
                 and "highs" in (settings.solver, *settings.fallback_solvers)):
             from .solvers.highs import check_interior_point
             check_interior_point(settings.interior_point)

@@ -16,7 +16,7 @@ SOLVERS = ("highs", "clarabel", "cvxpy")
 NETWORK_FIRST_MODES = ("auto", "off", "require")
 
 #: Names accepted by ``jam(..., interior_point=...)`` (HiGHS backend).
-INTERIOR_POINT_SOLVERS = ("ipx", "hipo")
+INTERIOR_POINT_SOLVERS = ("auto", "ipx", "hipo")
 
 
 @dataclass(frozen=True)
@@ -77,10 +77,11 @@ class JamSettings:
         Start each LP from the optimal basis of the previous one (HiGHS: primal simplex from
         that basis, interior point + crossover when it does not pay off).
     interior_point : str
-        HiGHS's interior-point solver for the LPs solved from scratch: "ipx" (default) or
-        "hipo" (HiGHS's newer interior point with a direct, METIS-ordered factorisation; it
-        needs the `hipo` extra, `pip install "calippso[hipo]"`). Both end with a crossover
-        to a vertex.
+        HiGHS's interior-point solver for the LPs solved from scratch: "ipx", "hipo"
+        (HiGHS's newer interior point with a direct, METIS-ordered factorisation; it needs
+        the `hipo` extra, `pip install "calippso[hipo]"`), or "auto" (default): HiPO for LPs
+        of `solvers.highs.HIPO_MIN_ROWS` rows or more when it is installed, IPX otherwise.
+        All end with a crossover to a vertex.
     precompress_pressure : float or None
         If set, first compress the input by Lubachevsky–Stillinger event-driven MD until this
         reduced pressure (`calippso.precompress`), then run the LP loop from there. For loose
@@ -112,7 +113,7 @@ class JamSettings:
     network_first: str = "auto"
     verify_newton: bool = False
     warm_start: bool = True
-    interior_point: str = "ipx"
+    interior_point: str = "auto"
     precompress_pressure: float | None = None
     pin: bool = True
     verbose: bool = False

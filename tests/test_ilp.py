@@ -12,6 +12,7 @@ import pytest
 import calippso
 from calippso import JammingError, Packing, jam
 from calippso.packing import minimum_image
+from calippso.solvers.highs import hipo_available
 
 from configurations import bidisperse, lognormal, overlap_free, random_sequential_addition
 
@@ -85,26 +86,33 @@ def test_every_backend_jams(solver):
     assert result.solver == solver
 
 
-def _hipo_available() -> bool:
-    from calippso.solvers.highs import check_interior_point
-
-    try:
-        check_interior_point("hipo")
-    except ValueError:
-        return False
-    return True
-
-
 @pytest.mark.parametrize("interior_point", ["ipx", "hipo"])
 def test_both_interior_points_jam(interior_point):
     """HiPO (with the hipo extra) jams like IPX; without it, the run is refused up front.
     No warm starts, so that every LP is solved by the interior point under test."""
     start = random_sequential_addition(64, 3, 0.3, seed=11)
-    if interior_point == "hipo" and not _hipo_available():
+    if interior_point == "hipo" and not hipo_available():
         with pytest.raises(ValueError, match=r"HiPO needs the highspy-extras package"):
             jam(start, interior_point="hipo")
         return
     assert_jammed(jam(start, interior_point=interior_point, warm_start=False))
+
+
+def test_auto_interior_point_takes_hipo_for_large_lps_only(monkeypatch):
+    """"auto" picks HiPO from HIPO_MIN_ROWS rows on where it is installed, IPX otherwise."""
+    from types import SimpleNamespace
+
+    import calippso.solvers.highs as highs
+
+    small, large = SimpleNamespace(n_rows=highs.HIPO_MIN_ROWS - 1), SimpleNamespace(
+        n_rows=highs.HIPO_MIN_ROWS)
+    assert highs.interior_point_for(large, "ipx") == "ipx"
+    assert highs.interior_point_for(small, "hipo") == "hipo"
+    monkeypatch.setattr(highs, "hipo_available", lambda: True)
+    assert highs.interior_point_for(small, "auto") == "ipx"
+    assert highs.interior_point_for(large, "auto") == "hipo"
+    monkeypatch.setattr(highs, "hipo_available", lambda: False)
+    assert highs.interior_point_for(large, "auto") == "ipx"
 
 
 @pytest.mark.slow

@@ -5,6 +5,7 @@ basis."""
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import sys
 import time
@@ -22,6 +23,11 @@ from .base import Basis, LPSolution
 #: solve costs about as much as 0.3 simplex iterations per row.
 WARM_ITERATIONS_PER_ROW = 0.25
 MIN_WARM_ITERATIONS = 200
+#: With ``interior_point="auto"``, LPs from this many rows on are solved from scratch by HiPO
+#: where it is installed. HiPO was faster on every cold LP measured (docs/jamming.md,
+#: Backends), by more the larger the LP; below this size, where whole runs took about as long
+#: either way (N = 1024 in d = 3 and 4), the IPX trajectory of earlier releases is kept.
+HIPO_MIN_ROWS = 6000
 
 _STATUS = {int(v): v for v in (highspy.HighsBasisStatus.kLower, highspy.HighsBasisStatus.kBasic,
                                highspy.HighsBasisStatus.kUpper, highspy.HighsBasisStatus.kZero,
@@ -92,6 +98,24 @@ def _set_interior_point(highs: highspy.Highs, name: str) -> None:
 def check_interior_point(name: str) -> None:
     """Raise ValueError, before any LP is built, if interior point `name` is not available."""
     _set_interior_point(_quiet_highs(), name)
+
+
+@functools.lru_cache(maxsize=1)
+def hipo_available() -> bool:
+    """Whether this HiGHS build has HiPO (the highspy-extras package)."""
+    try:
+        check_interior_point("hipo")
+    except ValueError:
+        return False
+    return True
+
+
+def interior_point_for(lp: LinearProgram, setting: str) -> str:
+    """The interior point that solves `lp` from scratch: `setting`, or for "auto" HiPO from
+    `HIPO_MIN_ROWS` rows on when it is installed, IPX otherwise."""
+    if setting != "auto":
+        return setting
+    return "hipo" if lp.n_rows >= HIPO_MIN_ROWS and hipo_available() else "ipx"
 
 
 def _model(lp: LinearProgram) -> highspy.HighsLp:
@@ -193,7 +217,7 @@ def solve(lp: LinearProgram, settings: JamSettings, warm_start: Basis | None = N
             return _solution(highs, lp, start, warm_started=True)
         highs.clearSolver()
         highs.setOptionValue("simplex_iteration_limit", highspy.kHighsIInf)
-    _set_interior_point(highs, settings.interior_point)
+    _set_interior_point(highs, interior_point_for(lp, settings.interior_point))
     highs.setOptionValue("run_crossover", "on")
     highs.setOptionValue("ipm_optimality_tolerance", 1e-12)
     highs.run()
