@@ -1,5 +1,8 @@
 """Jam monodisperse hard spheres compressed by Lubachevsky–Stillinger, in d = 3, 4 or 5.
 
+Run time on one core, once Numba has compiled the generators: about 7 s (d = 3), 6 s
+(d = 4), 13 s (d = 5); --tiny 2–5 s.
+
 Expected phi_J: about 0.64 (d = 3), 0.46 (d = 4), 0.31 (d = 5), slightly lower for small N.
 
     python examples/ls_jam.py --d 3        # N = 512

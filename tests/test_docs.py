@@ -1,14 +1,36 @@
-"""The documentation site builds without a warning (mkdocs --strict)."""
+"""The documentation: the site builds without a warning (mkdocs --strict) and reaches every
+page, the README's snippets run as written, its timing claims agree with the command's help,
+every example states its run time, and git ignores what the demo and mkdocs write."""
 
 from __future__ import annotations
 
+import ast
+import os
+import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
 
+import click
 import pytest
 
+from calippso.cli import cli
+
 ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+FENCE = re.compile(r"^```(\w+)\n(.*?)^```$", re.MULTILINE | re.DOTALL)
+DEMO_SECONDS = re.compile(r"about (\d+) s\b")
+
+
+def _blocks(path: Path, language: str) -> list[str]:
+    """The bodies of the fenced code blocks of `language` in `path`."""
+    return [body for name, body in FENCE.findall(path.read_text()) if name == language]
+
+
+def _paragraph(path: Path, words: str) -> str:
+    """The paragraph of `path` that contains `words`."""
+    return next(part for part in path.read_text().split("\n\n") if words in part)
 
 
 def test_mkdocs_build_strict(tmp_path):
@@ -24,3 +46,83 @@ def test_mkdocs_build_strict(tmp_path):
     assert run.returncode == 0, run.stderr[-3000:]
     page = (tmp_path / "site" / "api" / "calippso" / "index.html").read_text()
     assert "jam" in page and "Parameters" in page  # the reference is built from docstrings
+
+
+def test_readme_python_snippets_run_as_written(tmp_path):
+    blocks = _blocks(README, "python")
+    assert blocks
+    for block in blocks:
+        run = subprocess.run(
+            [sys.executable, "-c", block], cwd=tmp_path, capture_output=True, text=True,
+            timeout=300,
+        )
+        assert run.returncode == 0, run.stderr[-3000:]
+
+
+def _parse(args: list[str]) -> click.Context:
+    """Parse a ``calippso`` command line (options and their values) without running it."""
+    command, name = cli, "calippso"
+    while isinstance(command, click.Group):
+        name = args.pop(0)
+        command = command.get_command(click.Context(cli), name)
+        assert command is not None, f"no command {name!r}"
+    return command.make_context(name, args)
+
+
+def test_readme_shell_lines_are_valid_commands(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    lines = [line for block in _blocks(README, "bash") for line in block.splitlines()]
+    assert lines
+    for line in lines:
+        program, *args = shlex.split(line, comments=True)
+        assert program == "calippso", line
+        for argument in args:  # the files that the lines before write
+            if not argument.startswith("-") and Path(argument).suffix:
+                Path(argument).touch()
+        _parse(args)
+
+
+def test_demo_time_is_the_same_in_the_help_and_the_docs():
+    help_text = cli.get_command(click.Context(cli), "demo").help
+    figures = DEMO_SECONDS.findall(help_text)
+    assert len(figures) == 2  # the first run (Numba compiles) and the later ones
+    assert DEMO_SECONDS.findall(_paragraph(README, "calippso-demo/")) == figures
+    assert DEMO_SECONDS.findall(_paragraph(ROOT / "docs" / "index.md", "calippso-demo/")) == figures
+    assert re.search(r"about \d+–\d+ minutes", _paragraph(README, "run the tests"))
+
+
+@pytest.mark.parametrize("script", sorted((ROOT / "examples").glob("*.py")), ids=lambda p: p.name)
+def test_every_example_states_its_run_time(script):
+    docstring = ast.get_docstring(ast.parse(script.read_text()))
+    assert re.search(r"^Run time\b.*\d+ s\b", docstring, re.MULTILINE), docstring
+
+
+def _nav_pages(entries) -> set[str]:
+    """The page paths of a mkdocs `nav` (nested lists of {title: page or list})."""
+    pages = set()
+    for entry in entries:
+        for value in entry.values():
+            pages |= _nav_pages(value) if isinstance(value, list) else {value}
+    return pages
+
+
+def test_every_page_is_in_the_navigation_and_linked_from_another():
+    yaml = pytest.importorskip("yaml")
+    docs = ROOT / "docs"
+    pages = {path.relative_to(docs).as_posix() for path in docs.rglob("*.md")}
+    assert _nav_pages(yaml.safe_load((ROOT / "mkdocs.yml").read_text())["nav"]) == pages
+    for page in pages - {"index.md"}:
+        linking = [
+            other for other in docs.rglob("*.md")
+            if other != docs / page
+            and f"({Path(os.path.relpath(docs / page, other.parent)).as_posix()}" in other.read_text()
+        ]
+        assert linking, f"no page links to {page}"
+
+
+def test_demo_output_and_built_site_are_ignored_by_git():
+    if not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    paths = ["calippso-demo/jammed.npz", "site/index.html"]
+    run = subprocess.run(["git", "check-ignore", *paths], cwd=ROOT, capture_output=True, text=True)
+    assert run.stdout.split() == paths
