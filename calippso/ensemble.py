@@ -62,9 +62,6 @@ SUMMARY = "summary.csv"
 #: Name of the file in `out_dir` that records the `EnsembleSpec` of its packings (JSON).
 MANIFEST = "ensemble.json"
 
-#: Permissions of a new manifest before the umask is applied (as for any new file).
-NEW_FILE_MODE = 0o666
-
 #: Columns of the summary table, in order.
 COLUMNS = (
     "seed",
@@ -386,20 +383,12 @@ def _recorded_by_packings(out_dir: Path) -> dict:
     return {}
 
 
-def _umask() -> int:
-    """The umask of this process (read by setting it and setting it back)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
 def _write_manifest(path: Path, record: dict) -> None:
-    """Write the manifest atomically, with the permissions the umask gives a new file."""
+    """Write the manifest atomically (`atomic_path`: a new file gets the umask's permissions)."""
     from .atomic import atomic_path
 
     with atomic_path(path) as temporary:
         temporary.write_text(json.dumps(record, indent=2, sort_keys=True) + "\n")
-        temporary.chmod(NEW_FILE_MODE & ~_umask())
 
 
 def check_manifest(out_dir: Path, spec: EnsembleSpec) -> None:
