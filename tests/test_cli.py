@@ -411,3 +411,13 @@ def test_jam_network_first_options(capfd, tmp_path, start_2d):
     code, _, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "y.npz", "--network",
                         start_2d, "--quiet")
     assert code != 0 and str(start_2d) in err and "no 'contacts' array" in err
+
+
+def test_jam_of_one_sphere_says_why_it_cannot_jam(capfd, tmp_path):
+    single = tmp_path / "one.npz"
+    calippso.write(Packing(np.array([[1.0, 2.0, 3.0]]), np.array([1.0]), np.full(3, 5.0)),
+                   single)
+    code, _, err = _run(capfd, "jam", single, "-o", tmp_path / "out.npz", "--quiet")
+    assert code != 0
+    assert err.strip().count("\n") == 0 and "Traceback" not in err
+    assert str(single) in err and "cannot jam 1 particle(s) in d = 3" in err
