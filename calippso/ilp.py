@@ -779,10 +779,20 @@ class _Jammer:
                 positions = separated
                 search, close, overlapping = self._overlaps_outside(
                     positions, refined.diameters, order)
-        if overlapping.any() or not refined.positive:
+        touching = 0
+        if origin is not None:
+            # a guessed network must be the whole contact network: another touching pair of
+            # stable particles means a degenerate (hyperstatic) packing, left to the LPs
+            stable = ~network.rattlers
+            outside = ~np.isin(close.i * self.n + close.j, order)
+            touching = int(np.count_nonzero(outside & (close.gaps < GEOMETRIC_CONTACT_GAP)
+                                            & stable[close.i] & stable[close.j]))
+        if overlapping.any() or not refined.positive or touching:
             self.failed_networks.add(key)
-            self.newton_failure = ("a non-positive force" if not refined.positive else
-                                   f"{int(overlapping.sum())} other pair(s) would overlap")
+            self.newton_failure = (
+                "a non-positive force" if not refined.positive else
+                f"{int(overlapping.sum())} other pair(s) would overlap" if overlapping.any()
+                else f"{touching} other pair(s) touch (a hyperstatic packing)")
             return None
         self.positions, self.diameters, self.search = (positions, refined.diameters, search)
         current = search.pairs_of(network.i, network.j)

@@ -1,12 +1,15 @@
 """Candidate contact networks of a near-jammed configuration, read from its geometry.
 
-Close to a jamming point the contacts are the pairs whose relative gaps h = |r|/σ − 1 lie
-below the largest jump of the sorted gaps: the contacts sit within the distance to the
-jamming point (~1e-7 for a slightly perturbed jammed packing), the next pairs orders of
-magnitude further. After recursive rattler removal such a network is isostatic,
-N_c = d (N_s − 1) + 1, and the Newton stage (`calippso.newton`) can prove its jamming point
-with no LP. A network handed over by the caller (a hint, e.g. the overlap network of a
-soft-sphere quench) is tried first.
+Close to a jamming point the contacts are the pairs with the smallest relative gaps
+h = |r|/σ − 1: they sit within the distance to the jamming point (~1e-7 for a slightly
+perturbed jammed packing), the next pairs usually orders of magnitude further, beyond the
+largest jump of the sorted gaps. After recursive rattler removal the contacts form an
+isostatic network, N_c = d (N_s − 1) + 1, and the Newton stage (`calippso.newton`) can prove
+its jamming point with no LP. The candidates, in order: a network handed over by the caller
+(a hint, e.g. the overlap network of a soft-sphere quench); the fewest closest pairs that
+make an isostatic network, when they all lie within `NEAR_CONTACT_GAP` of contact (in d = 5
+the gaps above the contacts rise smoothly, with no clear jump); the pairs below the largest
+jumps of the sorted gaps.
 
 Not every near-jammed input has a clean jump: a candidate may hold a few near-contacts too
 many (hyperstatic by a few). The pairs with the largest gaps are then dropped, one by one and
@@ -34,6 +37,11 @@ ROUNDOFF_GAP = 1e-15
 MIN_JUMP_RATIO = 3.0
 #: Splits of the gap spectrum tried, the largest jumps first.
 SPLITS_TRIED = 3
+#: The smallest gaps that make an isostatic network are a candidate too, jump or not, when
+#: the largest of them is below this relative gap: the contacts of a near-jammed input lie
+#: within ~1e-7 of closing (an LS slow end to p = 1e7, a quench shrunk by its overlaps), those
+#: of a compressed LS state (p ≤ 1e5, gaps ~1e-5) do not.
+NEAR_CONTACT_GAP = 1e-6
 #: A candidate hyperstatic by more than this many contacts is not trimmed: such a network is
 #: a crystal or a compressed state, not a jamming point with a few near-contacts.
 MAX_EXCESS_CONTACTS = 12
@@ -105,9 +113,11 @@ def guess_networks(search: NeighborSearch, d: int,
     Returns
     -------
     list of NetworkGuess
-        Distinct isostatic candidates: the hint's, then one per split of the gap spectrum
-        (the `SPLITS_TRIED` largest jumps), each trimmed of its largest-gap pairs when it is
-        hyperstatic by at most `MAX_EXCESS_CONTACTS`. Empty when nothing qualifies.
+        Distinct isostatic candidates: the hint's; the fewest closest pairs that make an
+        isostatic network, if all their gaps are below `NEAR_CONTACT_GAP`; then one per split
+        of the gap spectrum (the `SPLITS_TRIED` largest jumps). Each is trimmed
+        of its largest-gap pairs when it is hyperstatic by at most `MAX_EXCESS_CONTACTS`.
+        Empty when nothing qualifies.
     """
     n = search.positions.shape[0]
     close = search.pairs_within(float(search.diameters.max()) * (1.0 + CANDIDATE_GAP))
@@ -117,8 +127,10 @@ def guess_networks(search: NeighborSearch, d: int,
     candidates: list[tuple[Pairs, str]] = []
     if hint is not None and hint.shape[0]:
         candidates.append((search.pairs_of(hint[:, 0], hint[:, 1]), "hint"))
-    candidates += [(ranked.subset(np.arange(count)), "gap spectrum")
-                   for count in _splits(ranked.gaps, n, d)]
+    isostatic = _isostatic_count(ranked, n, d)
+    near = isostatic > 0 and ranked.gaps[isostatic - 1] < NEAR_CONTACT_GAP
+    counts = ([isostatic] if near else []) + _splits(ranked.gaps, n, d)
+    candidates += [(ranked.subset(np.arange(count)), "gap spectrum") for count in counts]
     guesses: list[NetworkGuess] = []
     seen: set[bytes] = set()
     for pairs, source in candidates:
@@ -143,6 +155,27 @@ def _splits(sorted_gaps: np.ndarray, n: int, d: int) -> list[int]:
     allowed = (counts >= n) & (counts <= 2 * d * n) & (jumps >= np.log10(MIN_JUMP_RATIO))
     best = np.flatnonzero(allowed)[np.argsort(-jumps[allowed], kind="stable")]
     return [int(counts[k]) for k in best[:SPLITS_TRIED]]
+
+
+def _isostatic_count(ranked: Pairs, n: int, d: int) -> int:
+    """The smallest count k of the closest pairs whose network, after rattler removal, is not
+    hypostatic (found by bisection; the excess grows with k up to the jumps of rattler
+    removal); 0 if even all pairs are hypostatic."""
+    def excess(count: int) -> int:
+        rattlers, kept = remove_rattlers(n, d, ranked.i[:count], ranked.j[:count])
+        n_stable = int(n - rattlers.sum())
+        return isostaticity_gap(int(kept.sum()), n_stable, d) if n_stable else -1
+
+    low, high = 1, len(ranked)
+    if high == 0 or excess(high) < 0:
+        return 0
+    while low < high:
+        middle = (low + high) // 2
+        if excess(middle) < 0:
+            low = middle + 1
+        else:
+            high = middle
+    return low
 
 
 def _isostatic_network(pairs: Pairs, n: int, d: int, source: str) -> NetworkGuess | None:
