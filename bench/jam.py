@@ -9,6 +9,7 @@ Lubachevsky–Stillinger generator. Run from the repository root:
     python bench/jam.py --no-shared --seeds 1 2 3 4 5 6 7 8   # the spread over LS inputs
     python bench/jam.py --no-shared --start fb --ls 3:1000 --pressure 1e12 --seeds 1 2 3
     python bench/jam.py --no-shared --pressure 1e7 --final-growth-rate 1e-3   # LS with a slow end
+    python bench/jam.py --seeds 1 2 3 4 5 6 7 8 --cache DIR --json jam.json   # keep the inputs
 
 Columns: N, d, backend, LPs, total wall time (s), share of it inside the LP solver,
 phi_J, N_c (contacts among stable particles), isostaticity gap, force balance, min gap;
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import json
 import sys
 import time
 from pathlib import Path
@@ -71,18 +73,39 @@ def parse_options(pairs: list[str]) -> dict:
 
 
 def row(name: str, packing: calippso.Packing, backend: str, max_iters: int,
-        options: dict) -> tuple[str, int, float]:
-    """One table row, with the run's LP count and wall time."""
+        options: dict) -> dict:
+    """One run of `jam`: the figures of its table row."""
     start = time.perf_counter()
     result = calippso.jam(packing, solver=backend, max_iters=max_iters, **options)
     total = time.perf_counter() - start
     history = result.history
-    share = history["solver_time"].sum() / total
-    return (f"{name:<44} {packing.n:>6} {packing.d:>2} {backend:>8} {result.iterations:>4} "
-            f"{total:>8.2f} {share:>6.1%} {result.phi:>11.8f} {result.n_contacts:>6} "
-            f"{result.isostaticity_gap:>4} {result.force_balance:>8.1e} "
-            f"{history['min_gap'][-1]:>9.1e} {'yes' if result.converged else 'NO':>4}",
-            result.iterations, total)
+    return {"input": name, "n": packing.n, "d": packing.d, "backend": backend,
+            "lps": int(result.iterations), "total": total,
+            "solver_share": float(history["solver_time"].sum() / total), "phi": result.phi,
+            "contacts": int(result.n_contacts), "isostaticity_gap": int(result.isostaticity_gap),
+            "force_balance": float(result.force_balance),
+            "min_gap": float(history["min_gap"][-1]), "converged": bool(result.converged)}
+
+
+def line(run: dict) -> str:
+    """A run as a line of the table."""
+    return (f"{run['input']:<44} {run['n']:>6} {run['d']:>2} {run['backend']:>8} "
+            f"{run['lps']:>4} {run['total']:>8.2f} {run['solver_share']:>6.1%} "
+            f"{run['phi']:>11.8f} {run['contacts']:>6} {run['isostaticity_gap']:>4} "
+            f"{run['force_balance']:>8.1e} {run['min_gap']:>9.1e} "
+            f"{'yes' if run['converged'] else 'NO':>4}")
+
+
+def cached_ls_input(cache: Path | None, d: int, n: int, pressure: float, seed: int,
+                    start: str, final_growth_rate: float | None) -> calippso.Packing:
+    """`ls_input`, kept in `cache` (an .npz per input) when a cache folder is given."""
+    if cache is None:
+        return ls_input(d, n, pressure, seed, start, final_growth_rate)
+    path = cache / f"ls_{start}_d{d}_n{n}_p{pressure:g}_end{final_growth_rate}_seed{seed}.npz"
+    if not path.exists():
+        cache.mkdir(parents=True, exist_ok=True)
+        calippso.write(ls_input(d, n, pressure, seed, start, final_growth_rate), path)
+    return calippso.read(path)
 
 
 def main() -> None:
@@ -104,6 +127,9 @@ def main() -> None:
                         help="random starts to generate, as d:N:phi (seed 1)")
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                         help="further jam options, e.g. max_step=0.3 newton=False")
+    parser.add_argument("--cache", type=Path, default=None,
+                        help="folder that keeps the generated LS inputs for the next run")
+    parser.add_argument("--json", type=Path, default=None, help="write the rows to this file")
     args = parser.parse_args()
 
     inputs = []
@@ -115,7 +141,8 @@ def main() -> None:
         if args.final_growth_rate is not None:
             label += f" end {args.final_growth_rate:g}"
         inputs += [(f"{label} d={d} p={args.pressure:g} seed {seed}",
-                    ls_input(d, n, args.pressure, seed, args.start, args.final_growth_rate))
+                    cached_ls_input(args.cache, d, n, args.pressure, seed, args.start,
+                                    args.final_growth_rate))
                    for seed in args.seeds]
     for spec in args.random:
         d, n, phi = spec.split(":")
@@ -125,14 +152,17 @@ def main() -> None:
     print(f"{'input':<44} {'N':>6} {'d':>2} {'backend':>8} {'LPs':>4} {'total s':>8} "
           f"{'solver':>6} {'phi_J':>11} {'N_c':>6} {'iso':>4} {'balance':>8} {'min gap':>9} "
           f"{'conv':>4}")
-    runs, lps, seconds = 0, 0, 0.0
+    runs = []
     for name, packing in inputs:
         for backend in args.backends:
-            line, iterations, total = row(name, packing, backend, args.max_iters, options)
-            print(line, flush=True)
-            runs, lps, seconds = runs + 1, lps + iterations, seconds + total
-    if runs > 1:
-        print(f"{runs} runs: {lps} LPs, {seconds:.1f} s in all, {seconds / runs:.1f} s per run")
+            runs.append(row(name, packing, backend, args.max_iters, options))
+            print(line(runs[-1]), flush=True)
+    if len(runs) > 1:
+        lps, seconds = sum(run["lps"] for run in runs), sum(run["total"] for run in runs)
+        print(f"{len(runs)} runs: {lps} LPs, {seconds:.1f} s in all, "
+              f"{seconds / len(runs):.1f} s per run")
+    if args.json:
+        args.json.write_text(json.dumps(runs, indent=1))
 
 
 if __name__ == "__main__":

@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -79,9 +81,11 @@ def test_jam_refuses_before_any_lp(args, error, pattern):
 
 
 def _overlapping(amount: float) -> Packing:
-    """Two particles alone in a box, overlapping by `amount` σ."""
-    positions = np.array([[1.0, 1.0, 1.0], [2.0 - amount, 1.0, 1.0]])
-    return Packing(positions, np.ones(2), np.full(3, 4.0))
+    """Eight unit spheres on a cubic grid of spacing 2 in a box of side 4, with sphere 1 moved
+    next to sphere 0 so that they overlap by `amount` σ (the only overlap)."""
+    positions = np.array(list(itertools.product([1.0, 3.0], repeat=3)))
+    positions[1] = [2.0 - amount, 1.0, 1.0]
+    return Packing(positions, np.ones(8), np.full(3, 4.0))
 
 
 DUPLICATE = r"duplicated particles in the input: particles 2 and 5 sit at the same position"
@@ -89,7 +93,8 @@ DUPLICATE = r"duplicated particles in the input: particles 2 and 5 sit at the sa
 
 @pytest.mark.parametrize("call, error, pattern", [
     (lambda: jam(_overlapping(1e-3)), ValueError,
-     r"overlapping particles in the input: 1 pair\(s\) overlap, the worst is \(0, 1\) with gap h = .*-1\.000e-03"),
+     r"overlapping particles in the input: 1 pair\(s\) overlap beyond round-off \(h < -1e-10\), "
+     r"the worst is \(0, 1\) with gap h = .*-1\.000e-03; shrink every diameter"),
     (lambda: jam(_duplicated(), DIAM, BOX), ValueError, DUPLICATE),
     (lambda: jam(_duplicated_by_a_period(), DIAM, BOX), ValueError, DUPLICATE),
     (lambda: jam(GOOD, solver="gurobi"), ValueError, r"unknown solver 'gurobi': choose one of highs, clarabel, cvxpy"),
