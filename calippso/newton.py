@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from .packing import minimum_image, wrap
 from .sparse_lu import Factors, factorize
 
-__all__ = ["Refinement", "refine_isostatic"]
+__all__ = ["Refinement", "refine_isostatic", "contact_jacobian"]
 
 #: Newton stops once the largest correction is below this (mean diameters); quadratic
 #: convergence then leaves an error far below round-off.
@@ -119,6 +119,30 @@ def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_col: np.ndarray
                          shape=(m, n_unknowns))
 
 
+def _first_columns(stable: np.ndarray, d: int) -> np.ndarray:
+    """The first Jacobian column of every particle's block, shape (N,); −1 for rattlers and
+    for the pinned particle (the first stable one)."""
+    members = np.flatnonzero(stable)
+    block = np.full(stable.shape[0], -1, dtype=np.int64)
+    block[members[1:]] = d * np.arange(members.size - 1)
+    return block
+
+
+def contact_jacobian(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                     i: np.ndarray, j: np.ndarray, stable: np.ndarray) -> sp.csc_matrix:
+    """The Jacobian of the contact equations at a configuration (as `refine_isostatic` builds
+    it), shape (M, d (N_s − 1) + 1): for benchmarks of its factorisation.
+
+    Parameters are those of `refine_isostatic`.
+    """
+    d = positions.shape[1]
+    n_unknowns = d * (int(np.count_nonzero(stable)) - 1) + 1
+    block = _first_columns(stable, d)
+    sigma = 0.5 * (diameters[i] + diameters[j])
+    vectors = minimum_image(positions[i] - positions[j], box)
+    return _jacobian(vectors, 1.0 / sigma**2, block[i], block[j], n_unknowns)
+
+
 def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                      i: np.ndarray, j: np.ndarray, stable: np.ndarray) -> Refinement | None:
     """Solve the contact equations of an isostatic network and certify the forces.
@@ -152,8 +176,7 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     n_unknowns = d * (members.size - 1) + 1
     if members.size < 2 or i.shape[0] != n_unknowns:
         return None
-    block = np.full(n, -1, dtype=np.int64)
-    block[members[1:]] = d * np.arange(members.size - 1)  # members[0] is pinned
+    block = _first_columns(stable, d)
     i_col, j_col = block[i], block[j]
     sigma = 0.5 * (diameters[i] + diameters[j])
     inverse_sigma2 = 1.0 / sigma**2
