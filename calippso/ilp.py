@@ -320,6 +320,11 @@ class _Network:
     from_lp: bool
 
 
+def _network_key(i: np.ndarray, j: np.ndarray, n: int) -> str:
+    """A digest of a contact network (its sorted pair keys i N + j), for `failed_networks`."""
+    return hashlib.sha256(np.sort(i * n + j).tobytes()).hexdigest()
+
+
 def _held_by_bound(lp: LinearProgram, solution: LPSolution) -> bool:
     """Whether the bound on the displacements limited Γ in this LP.
 
@@ -720,6 +725,9 @@ class _Jammer:
                     self.callback({**self.records[-1], "iteration": 0, "packing": self.packing()})
                 return refined
             failures.append(f"{guess.source}: {self.newton_failure}")
+            # refused here, from the input's positions: the LP loop may still reach this
+            # network, and its Newton stage must not skip it as tried before
+            self.failed_networks.discard(_network_key(guess.i, guess.j, self.n))
             start = time.perf_counter()
         self.notes.append(f"network first: no guessed network was certified "
                           f"({'; '.join(failures)}), so the LP loop ran")
@@ -756,7 +764,7 @@ class _Jammer:
         record (stage "newton") is added; on failure `newton_failure` says why.
         """
         order = np.sort(network.i * self.n + network.j)
-        key = hashlib.sha256(order.tobytes()).hexdigest()
+        key = _network_key(network.i, network.j, self.n)
         if key in self.failed_networks and not retry:
             self.newton_failure = "tried before"
             return None
