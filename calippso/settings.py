@@ -80,7 +80,8 @@ class JamSettings:
         HiGHS's interior-point solver for the LPs solved from scratch: "ipx", "hipo"
         (HiGHS's newer interior point with a direct, METIS-ordered factorisation; it needs
         the `hipo` extra, `pip install "calippso[hipo]"`), or "auto" (default): HiPO for LPs
-        of `solvers.highs.HIPO_MIN_ROWS` rows or more when it is installed, IPX otherwise.
+        of `solvers.highs.HIPO_MIN_COLUMNS` columns or more (d N + 1) when it is installed,
+        IPX otherwise.
         All end with a crossover to a vertex.
     precompress_pressure : float or None
         If set, first compress the input by Lubachevsky–Stillinger event-driven MD until this

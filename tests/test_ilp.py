@@ -99,13 +99,15 @@ def test_both_interior_points_jam(interior_point):
 
 
 def test_auto_interior_point_takes_hipo_for_large_lps_only(monkeypatch):
-    """"auto" picks HiPO from HIPO_MIN_ROWS rows on where it is installed, IPX otherwise."""
+    """"auto" picks HiPO from HIPO_MIN_COLUMNS columns on where it is installed, IPX
+    otherwise; N = 1024 in d = 3 and 4 stays with IPX."""
     from types import SimpleNamespace
 
     import calippso.solvers.highs as highs
 
-    small, large = SimpleNamespace(n_rows=highs.HIPO_MIN_ROWS - 1), SimpleNamespace(
-        n_rows=highs.HIPO_MIN_ROWS)
+    small, large = SimpleNamespace(n_cols=highs.HIPO_MIN_COLUMNS - 1), SimpleNamespace(
+        n_cols=highs.HIPO_MIN_COLUMNS)
+    assert 4 * 1024 + 1 < highs.HIPO_MIN_COLUMNS <= 3 * 2048 + 1
     assert highs.interior_point_for(large, "ipx") == "ipx"
     assert highs.interior_point_for(small, "hipo") == "hipo"
     monkeypatch.setattr(highs, "hipo_available", lambda: True)

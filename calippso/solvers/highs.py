@@ -23,11 +23,13 @@ from .base import Basis, LPSolution
 #: solve costs about as much as 0.3 simplex iterations per row.
 WARM_ITERATIONS_PER_ROW = 0.25
 MIN_WARM_ITERATIONS = 200
-#: With ``interior_point="auto"``, LPs from this many rows on are solved from scratch by HiPO
-#: where it is installed. HiPO was faster on every cold LP measured (docs/jamming.md,
-#: Backends), by more the larger the LP; below this size, where whole runs took about as long
-#: either way (N = 1024 in d = 3 and 4), the IPX trajectory of earlier releases is kept.
-HIPO_MIN_ROWS = 6000
+#: With ``interior_point="auto"``, LPs with this many columns (d N + 1) or more are solved from
+#: scratch by HiPO where it is installed: N ≥ 2048 in d = 3, N ≥ 1024 in d = 5, where whole
+#: runs took about half as long with HiPO (docs/jamming.md, Backends). Smaller problems keep
+#: IPX: there whole runs took as long or longer with HiPO, whose interior points lead the
+#: crossover to other vertices and the loop along another path. The choice rests on the
+#: columns, fixed for a run, and not on the rows, which grow and shrink with the step bound.
+HIPO_MIN_COLUMNS = 5000
 
 _STATUS = {int(v): v for v in (highspy.HighsBasisStatus.kLower, highspy.HighsBasisStatus.kBasic,
                                highspy.HighsBasisStatus.kUpper, highspy.HighsBasisStatus.kZero,
@@ -112,10 +114,10 @@ def hipo_available() -> bool:
 
 def interior_point_for(lp: LinearProgram, setting: str) -> str:
     """The interior point that solves `lp` from scratch: `setting`, or for "auto" HiPO from
-    `HIPO_MIN_ROWS` rows on when it is installed, IPX otherwise."""
+    `HIPO_MIN_COLUMNS` columns on when it is installed, IPX otherwise."""
     if setting != "auto":
         return setting
-    return "hipo" if lp.n_rows >= HIPO_MIN_ROWS and hipo_available() else "ipx"
+    return "hipo" if lp.n_cols >= HIPO_MIN_COLUMNS and hipo_available() else "ipx"
 
 
 def _model(lp: LinearProgram) -> highspy.HighsLp:
