@@ -40,6 +40,11 @@ class GenerationResult:
         One sentence on why the run stopped.
     extra : dict
         Algorithm-specific details (documented by each generator).
+    contacts : ndarray of int64, shape (M, 2), or None
+        The contact network the generator found, when it knows one (`soft_quench`: the
+        overlap network before the final shrink, rattlers removed recursively): pairs
+        (i, j) with i < j, sorted lexicographically, in the packing's particle order. A hint
+        for `calippso.jam(packing, network=result.contacts)`; None for the other generators.
     """
 
     packing: Any
@@ -49,6 +54,7 @@ class GenerationResult:
     history: np.ndarray = field(default_factory=lambda: make_history([]))
     status: str = ""
     extra: dict = field(default_factory=dict)
+    contacts: np.ndarray | None = None
 
     def __repr__(self) -> str:
         return (f"GenerationResult(phi={self.packing.phi:.6f}, "

@@ -1,0 +1,448 @@
+"""Soft-sphere quench: harmonic spheres minimised with FIRE towards vanishing pressure, then shrunk.
+
+O'Hern, Silbert, Liu & Nagel, PRE 68, 011306 (2003): near a jamming point the energy minimum
+of harmonic spheres has pressure p ∝ φ − φ_J, and its overlap network at p → 0⁺ is the
+contact network of a hard-sphere jamming point. One uniform shrink of the diameters removes
+the overlaps; `calippso.jam` can then prove the jamming point from that network.
+"""
+
+from __future__ import annotations
+
+import time
+import numpy as np
+
+from calippso.contacts import remove_rattlers
+from calippso.packing import Packing, ball_volume
+
+from . import _fire
+from ._checks import (check_diameters, check_dimension, check_phi, check_positive,
+                      phi_estimate, remove_roundoff_overlap)
+from ._progress import Progress
+from .cells import verlet_lists, wrap_into_box
+from .initial import poisson
+from .result import GenerationResult, make_history
+
+__all__ = ["soft_quench"]
+
+#: FIRE base time step, in units of √(m σ²/ε) for the smallest diameter σ, at d = 3. It is
+#: scaled by √(3/d) because the stiffest mode grows with the number of contacts (~2d).
+DT0_3D = 0.1
+#: Δt_max / Δt0. Bitzek et al. use 10; at φ = 0.70 (d = 3) FIRE then never converged (forces
+#: still 0.46 after 1e5 steps) while 5 converged in 1.8e3 steps.
+DT_MAX_FACTOR = 5.0
+#: Force tolerance of the intermediate minimisations, relative to the mean pair force: their
+#: only use is the pressure that sets the next density.
+INTERMEDIATE_TOLERANCE = 1e-3
+#: The final minimisation checks the network at this tolerance and every decade below; it
+#: stops when two decades in a row give the same network (measured, d = 3, N = 1024: from
+#: 1e-4 to 1e-5 2–7 pairs still changed, below 1e-5 none).
+FIRST_CHECK_TOLERANCE = 1e-4
+#: Force floor of the convergence test, × machine epsilon × the box side: the round-off of
+#: the pair vectors (measured: N = 1024, d = 3, box 9.4 σ, p = 2.3e-8: forces converged to
+#: 2.3e-14 but never to 2.3e-15, 1.1 × eps × L).
+ROUNDOFF_FORCE = 50.0
+#: Each density step aims at a pressure this factor below the last (p ∝ φ − φ_J): larger
+#: steps unjam more often, smaller ones cost more minimisations.
+PRESSURE_REDUCTION = 1e-3
+#: The last step aims at this fraction of the target pressure, so that it usually lands below.
+TARGET_AIM = 0.3
+#: A minimisation whose pressure falls below this fraction of the pressure its step aimed at
+#: has unjammed. An unjamming configuration slides towards zero energy slowly (N = 1024,
+#: d = 4: 2.9e5 FIRE steps from p = 2e-7 to 1e-10), so it is caught early.
+UNJAM_FRACTION = 0.1
+#: The first density step goes this fraction of the way from φ_start to a typical φ_J, and
+#: at least `FIRST_STEP_LEAST` × φ_start down (a φ_start near the typical φ_J).
+FIRST_STEP = 0.5
+FIRST_STEP_LEAST = 0.01
+#: Relative gap left on the most overlapping pair by the final shrink (round-off of |r|/σ at
+#: box sides of ~30 σ is ~1e-14).
+SHRINK_GAP = 1e-12
+#: phi_start defaults to this factor × a typical jamming density of the dimension.
+PHI_START_FACTOR = 1.12
+#: Most minimisations (density steps) in one run; a run needs ~5–15.
+MAX_MINIMISATIONS = 200
+#: The Verlet skin adapts between minimisations: after one without a list rebuild it becomes
+#: `SKIN_DRIFT_FACTOR` × the largest drift seen (at least `SKIN_MIN` mean diameters); after
+#: one with rebuilds it doubles, up to the caller's skin. Near jamming the particles move
+#: ~1e-3 σ per minimisation, and a thin skin lists fewer pairs.
+SKIN_DRIFT_FACTOR = 4.0
+SKIN_MIN = 0.02
+
+
+class _SoftSpheres:
+    """Harmonic spheres in a periodic box, kept sorted by cell for cache locality.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Start positions (mean diameters).
+    nominal : ndarray, shape (N,)
+        Nominal diameters s_i (mean 1); the diameters are `scale` · s_i.
+    box : ndarray, shape (d,)
+    skin : float
+        Largest Verlet skin, in mean diameters (the skin adapts below it).
+
+    Attributes
+    ----------
+    x, v : ndarray, shape (N, d)
+        Positions and velocities in the sorted order.
+    s : ndarray, shape (N,)
+        Nominal diameters in the sorted order.
+    ids : ndarray of int64, shape (N,)
+        Original index of each slot.
+    scale : float
+        Diameter scale a.
+    steps : int
+        FIRE steps so far.
+    """
+
+    def __init__(self, positions: np.ndarray, nominal: np.ndarray, box: np.ndarray,
+                 skin: float) -> None:
+        n, d = positions.shape
+        self.box = box
+        self.max_skin = skin
+        self.skin = skin
+        self.x = positions.copy()
+        self.v = np.zeros_like(self.x)
+        self.f = np.zeros_like(self.x)
+        self.s = nominal.copy()
+        self.ids = np.arange(n, dtype=np.int64)
+        self.scale = 1.0
+        self.steps = 0
+        self.rebuilds = 0
+        self.phi_unit = float(np.sum(ball_volume(d, nominal / 2))) / float(np.prod(box))
+        self.dt0 = DT0_3D * np.sqrt(3.0 / d) * float(nominal.min())
+        self.force_floor = ROUNDOFF_FORCE * np.finfo(np.float64).eps * float(box.max())
+        self.x_built = self.x.copy()
+        self.lists: tuple[np.ndarray, ...] = ()
+
+    @property
+    def phi(self) -> float:
+        """Packing fraction at the current scale."""
+        return self.phi_unit * self.scale ** self.x.shape[1]
+
+    def set_phi(self, phi: float) -> None:
+        """Scale the diameters to packing fraction `phi` (positions unchanged)."""
+        self.scale = (phi / self.phi_unit) ** (1.0 / self.x.shape[1])
+
+    def rebuild(self) -> None:
+        """Wrap, re-sort the particles by cell, and rebuild the Verlet lists."""
+        wrap_into_box(self.x, self.box)
+        order = _fire.cell_order(self.x, self.box, self.scale * self.s.max() + self.skin)
+        self.x, self.v, self.s, self.ids = (self.x[order], self.v[order], self.s[order],
+                                            self.ids[order])
+        self.lists = _fire.pair_lists(*verlet_lists(self.x, self.box, self.scale * self.s,
+                                                    self.skin))
+        self.x_built = self.x.copy()
+        self.rebuilds += 1
+
+    def minimise(self, tolerance: float, pressure_floor: float,
+                 max_steps: int) -> tuple[int, float]:
+        """FIRE from rest at the current scale until converged, unjammed or out of steps.
+
+        Parameters
+        ----------
+        tolerance : float
+            Converged when max_i |F_i| ≤ tolerance × the mean force of the overlapping pairs
+            (or the round-off floor of the forces, `ROUNDOFF_FORCE` × eps × L).
+        pressure_floor : float
+            Unjammed when the pressure drops below this (ε / mean diameter^d).
+        max_steps : int
+            Steps allowed.
+
+        Returns
+        -------
+        code : int
+            `_fire.CONVERGED`, `_fire.UNJAMMED` or `_fire.OUT_OF_STEPS`.
+        pressure : float
+            Pressure at the end, in units of ε / (mean diameter)^d.
+        """
+        d = self.x.shape[1]
+        self.v[:] = 0.0
+        state = np.array([self.dt0, _fire.ALPHA_START, 0.0, 0.0])
+        unit = self.scale**d / (d * float(np.prod(self.box)))
+        self.rebuild()
+        built = self.rebuilds
+        taken = 0
+        while True:
+            code, steps, pressure, drift = _fire.fire_run(
+                self.x, self.v, self.f, self.s, self.scale, self.box, *self.lists,
+                self.x_built, 0.5 * self.skin, state, DT_MAX_FACTOR * self.dt0,
+                _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure_floor,
+                unit, max_steps - taken)
+            taken += steps
+            if code != _fire.REBUILD:
+                break
+            self.rebuild()
+        self.steps += taken
+        if self.rebuilds == built:
+            self.skin = min(self.max_skin, max(SKIN_MIN, SKIN_DRIFT_FACTOR * drift))
+        else:
+            self.skin = min(self.max_skin, 2.0 * self.skin)
+        return code, pressure
+
+    def overlap_network(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Overlapping pairs in original particle indices, i < j, sorted, with their gaps."""
+        self.rebuild()
+        i, j, gaps = _fire.overlapping_pairs(self.x, self.s, self.scale, self.box,
+                                             *self.lists[:2])
+        i, j = self.ids[i], self.ids[j]
+        i, j = np.minimum(i, j), np.maximum(i, j)
+        order = np.lexsort((j, i))
+        return i[order], j[order], gaps[order]
+
+    def stable_network(self) -> np.ndarray:
+        """The overlap network without rattlers (recursively), shape (M, 2), sorted."""
+        i, j, _ = self.overlap_network()
+        _, kept = remove_rattlers(self.x.shape[0], self.x.shape[1], i, j)
+        return np.stack([i[kept], j[kept]], axis=1)
+
+    def positions(self) -> np.ndarray:
+        """Positions in the original particle order, shape (N, d)."""
+        out = np.empty_like(self.x)
+        out[self.ids] = self.x
+        return out
+
+
+class _DensitySteps:
+    """Chooses the density of each minimisation from the outcomes of the earlier ones.
+
+    Down from a jammed minimum (φ, p): the first step goes `FIRST_STEP` of the way to a
+    typical φ_J; later ones follow the line p(φ) through the last two jammed minima
+    (p ∝ φ − φ_J), aimed at max(`TARGET_AIM` × target, `PRESSURE_REDUCTION` × p). Near
+    p → 0 an isostatic minimum decompressed by a hair can lose a contact and slide into
+    a zero-energy state of another basin (measured at N = 1024: jammed at p = 1.03e-7,
+    unjammed at every density below, so that restoring it and bisecting never ends). So an
+    unjammed configuration (pressure below `UNJAM_FRACTION` × the aim) is kept and
+    compressed again from its own density, by the aimed pressure over the slope, doubled
+    after every further unjamming (its own φ_J lies above the density at which it
+    unjammed, by an unknown amount).
+
+    Parameters
+    ----------
+    target : float
+        Target pressure.
+    typical : float
+        A typical φ_J of the dimension.
+    """
+
+    def __init__(self, target: float, typical: float) -> None:
+        self.target = target
+        self.typical = typical
+        self.last: tuple[float, float] | None = None   # the last jammed minimum (φ, p)
+        self.slope: float | None = None                # dp/dφ from two jammed minima
+        self.aim = target
+        self.unjammed_at: float | None = None
+        self.unjammings = 0                            # since the last jammed minimum
+
+    def jammed(self, phi: float, pressure: float) -> None:
+        """Record a jammed minimum at density `phi` with pressure `pressure`."""
+        if self.last is not None and self.unjammings == 0 and phi != self.last[0]:
+            slope = (self.last[1] - pressure) / (self.last[0] - phi)
+            if slope > 0:
+                self.slope = slope
+        self.last = (phi, pressure)
+        self.unjammings = 0
+
+    @property
+    def pressure_floor(self) -> float:
+        """Pressure below which the next minimisation counts as unjammed."""
+        return UNJAM_FRACTION * self.aim
+
+    def unjammed(self, phi: float) -> None:
+        """Record a minimisation at density `phi` whose energy vanished."""
+        self.unjammed_at = phi
+        self.unjammings += 1
+
+    def next_phi(self) -> float:
+        """Density of the next minimisation."""
+        phi, pressure = self.last
+        slope = self.slope
+        if slope is None:           # one jammed minimum so far: p ∝ φ − φ_typical
+            slope = pressure / max(phi - self.typical, FIRST_STEP_LEAST * phi)
+        if self.unjammings:
+            return self.unjammed_at + self.aim / slope * 2.0 ** (self.unjammings - 1)
+        if self.slope is None:
+            return phi - FIRST_STEP * max(phi - self.typical, FIRST_STEP_LEAST * phi)
+        self.aim = max(TARGET_AIM * self.target, PRESSURE_REDUCTION * pressure)
+        return phi - (pressure - self.aim) / slope
+
+
+def _check_box(positions: np.ndarray, box: np.ndarray, nominal: np.ndarray, skin: float) -> None:
+    """ValueError if the list reach (largest diameter + skin) is not below half the box."""
+    reach = float(nominal.max()) + skin
+    if reach >= 0.5 * float(box.min()):
+        raise ValueError(f"too few particles: the box side {box.min():.3g} (mean diameters) is "
+                         f"not above twice the largest diameter plus the skin ({reach:.3g}); "
+                         f"use more particles")
+
+
+def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = None,
+                target_pressure: float = 1e-7, force_tolerance: float = 1e-6,
+                progress: bool = False, skin: float = 0.2,
+                max_steps: int = 50_000_000) -> GenerationResult:
+    """Quench harmonic soft spheres to a vanishing pressure, then shrink them to hard contact.
+
+    The route of O'Hern, Silbert, Liu & Nagel (2003) into a hard-sphere jamming basin:
+    uniform random centres in a cubic box at `phi_start` (above jamming), with the harmonic
+    repulsion V = ε/2 (1 − r/σ)² for r < σ, are minimised with FIRE 2.0 (Δt_max = 5 Δt0).
+    The density then steps down towards jamming: first halfway to a typical φ_J, then along
+    the line p(φ) through the last two minima (p ∝ φ − φ_J), each step aiming 1000× lower in
+    pressure (or at a fraction of `target_pressure`). A step whose energy vanishes (unjammed)
+    is undone and the step halved. Intermediate minima are converged to forces of 1e-3 of
+    the mean pair force; the one below `target_pressure` to `force_tolerance`. Finally all
+    diameters shrink by one factor until the most overlapping pair has a gap of 1e-12: the
+    overlap network becomes the contact network of a nearby hard-sphere jamming point.
+
+    Parameters
+    ----------
+    diameters : array_like, shape (N,)
+        Diameters σ_i > 0; only their ratios matter (the result has exactly these diameters,
+        in a box sized accordingly).
+    d : int
+        Dimension (≥ 2).
+    seed : int
+        Seed of the random centres.
+    phi_start : float, optional
+        Packing fraction of the first minimisation, in (0, 1), above jamming; default 1.12 ×
+        a typical jamming density (0.94, 0.69, 0.53, 0.35 in d = 2, 3, 4, 5).
+    target_pressure : float
+        Stop at the first converged minimum with pressure at or below this, in units of
+        ε / (mean diameter)^d. The largest overlap is then ~5 × the pressure (d = 3).
+    force_tolerance : float
+        Convergence of the last minimisation: max_i |F_i| at or below this × the mean force
+        of the overlapping pairs.
+    progress : bool
+        Show a tqdm bar (−log10 p); quiet by default.
+    skin : float
+        Verlet skin in mean diameters.
+    max_steps : int
+        Limit on the FIRE steps of the whole run.
+
+    Returns
+    -------
+    GenerationResult
+        `packing`: after the shrink, particles in the input order, diameters exactly the
+        given ones. `contacts`: the overlap network before the shrink without rattlers
+        (pairs i < j, int64, shape (M, 2), sorted). `reduced_pressure` is nan (soft spheres
+        have no hard-sphere pressure); `collisions` counts FIRE steps; `history` holds one
+        record per minimisation (FIRE steps so far, φ before the shrink, pressure, nan).
+        `extra`: ``pressure`` (final soft pressure, ε / (mean diameter)^d),
+        ``minimisations``, ``fire_steps``, ``rebuilds`` (list rebuilds), ``phi_soft`` (φ
+        before the shrink), ``shrink_factor`` (diameters were multiplied by it),
+        ``max_overlap`` (largest relative overlap 1 − r/σ before the shrink),
+        ``isostaticity_gap`` (N_c − (d (N_s − 1) + 1) of `contacts`), ``stable``
+        (N_s), ``overlap_correction`` (round-off shrink after an independent check, ~0).
+
+    Raises
+    ------
+    ValueError
+        On non-positive diameters, d < 2, phi_start outside (0, 1), non-positive pressure,
+        tolerance or skin, too few particles for the box, or a phi_start below jamming.
+    """
+    wall = time.perf_counter()
+    diameters = check_diameters(diameters)
+    d = check_dimension(d)
+    typical = phi_estimate(d)
+    phi_start = check_phi(min(0.95, PHI_START_FACTOR * typical) if phi_start is None
+                          else phi_start, "phi_start")
+    target_pressure = check_positive(target_pressure, "target_pressure")
+    force_tolerance = check_positive(force_tolerance, "force_tolerance")
+    skin = check_positive(skin, "skin")
+    if int(max_steps) != max_steps or max_steps < 1:
+        raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
+    mean = float(diameters.mean())
+    start = poisson(diameters, d, phi_start, seed)
+    box = start.box / mean
+    nominal = diameters / mean
+    _check_box(start.positions, box, nominal, skin)
+    system = _SoftSpheres(start.positions / mean, nominal, box, skin)
+    rows: list[tuple] = []
+    steps = _DensitySteps(target_pressure, typical)
+    status = f"stopped after {MAX_MINIMISATIONS} minimisations"
+    bar = Progress(progress, -np.log10(target_pressure), "soft quench -log10(p)")
+    try:
+        phi = phi_start
+        while len(rows) < MAX_MINIMISATIONS:
+            system.set_phi(phi)
+            floor = steps.pressure_floor
+            code, pressure = system.minimise(INTERMEDIATE_TOLERANCE, floor,
+                                             max_steps - system.steps)
+            if code == _fire.CONVERGED and pressure <= target_pressure:
+                code, pressure = _tighten(system, force_tolerance, floor, max_steps)
+            rows.append((system.steps, phi, pressure, np.nan))
+            bar.update(-np.log10(max(pressure, target_pressure)), phi=f"{phi:.6f}",
+                       p=f"{pressure:.3g}")
+            if code == _fire.OUT_OF_STEPS:
+                status = f"stopped at max_steps = {max_steps} (pressure {pressure:.3g})"
+                break
+            if code == _fire.UNJAMMED:
+                if steps.last is None:
+                    raise ValueError(f"phi_start = {phi_start} is below jamming for these "
+                                     f"spheres (the energy vanished); use a larger phi_start")
+                steps.unjammed(phi)
+            else:
+                steps.jammed(phi, pressure)
+                if pressure <= target_pressure:
+                    status = (f"converged at pressure {pressure:.3g} <= target "
+                              f"{target_pressure:.3g}")
+                    break
+            phi = steps.next_phi()
+    finally:
+        bar.close()
+    return _shrunk_result(system, diameters, mean, rows, pressure, status, wall)
+
+
+def _tighten(system: _SoftSpheres, force_tolerance: float, pressure_floor: float,
+             max_steps: int) -> tuple[int, float]:
+    """The final minimisation: converge decade by decade until the network stops changing.
+
+    The tolerance starts at `FIRST_CHECK_TOLERANCE` and drops tenfold each round, down to
+    `force_tolerance`; it stops early once two rounds in a row leave the same overlap
+    network without rattlers.
+
+    Returns
+    -------
+    code : int
+        `_fire.CONVERGED`, or `_fire.UNJAMMED` / `_fire.OUT_OF_STEPS` from a round.
+    pressure : float
+    """
+    tolerance = FIRST_CHECK_TOLERANCE
+    previous = None
+    while True:
+        tolerance = max(tolerance, force_tolerance)
+        code, pressure = system.minimise(tolerance, pressure_floor, max_steps - system.steps)
+        if code != _fire.CONVERGED or tolerance == force_tolerance:
+            return code, pressure
+        network = system.stable_network()
+        if previous is not None and np.array_equal(network, previous):
+            return code, pressure
+        previous = network
+        tolerance /= 10.0
+
+
+def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, rows: list,
+                   pressure: float, status: str, wall: float) -> GenerationResult:
+    """Shrink the overlaps away, find the network without rattlers, build the result."""
+    n, d = system.x.shape
+    i, j, gaps = system.overlap_network()
+    rattlers, kept = remove_rattlers(n, d, i, j)
+    contacts = np.stack([i[kept], j[kept]], axis=1).astype(np.int64)
+    stable = int(n - np.count_nonzero(rattlers))
+    worst = float(gaps.min()) if gaps.size else 0.0
+    shrink = (1.0 + min(worst, 0.0)) / (1.0 + SHRINK_GAP)
+    # Lengths back in the caller's units, with the diameters exactly the given ones.
+    factor = mean / (system.scale * shrink)
+    positions = system.positions() * factor
+    box = system.box * factor
+    sizes, correction = remove_roundoff_overlap(positions, diameters, box)
+    packing = Packing(positions, sizes, box).wrapped()
+    return GenerationResult(
+        packing=packing, reduced_pressure=float("nan"), collisions=system.steps,
+        wall_time=time.perf_counter() - wall, history=make_history(rows), status=status,
+        contacts=contacts,
+        extra={"pressure": float(pressure), "minimisations": len(rows), "fire_steps": system.steps,
+               "rebuilds": system.rebuilds, "phi_soft": system.phi, "shrink_factor": shrink,
+               "max_overlap": -worst, "stable": stable,
+               "isostaticity_gap": int(contacts.shape[0]) - (d * (stable - 1) + 1),
+               "overlap_correction": correction})

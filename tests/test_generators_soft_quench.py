@@ -1,0 +1,136 @@
+"""Soft-sphere quench: no overlap after the shrink, tiny contact gaps, an (almost) isostatic
+overlap network with its rattlers removed, the pressure below the target, φ_J in the band of
+the dimension, determinism, errors.
+
+The quenches run once per module (fixtures); small N keeps the file within ~30 s, Numba
+compilation included.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import generators
+from calippso.contacts import remove_rattlers
+from calippso.neighbors import close_pairs, min_gap
+from calippso.packing import minimum_image
+from generators import diameters as dist
+
+TARGET = 1e-7
+
+#: (name, diameters, d, seed, φ band). Bands: d = 3 monodisperse 0.63–0.65 and d = 2
+#: bidisperse 1:1.4 0.83–0.85 (O'Hern et al. at small N); d = 4 around LS's 0.459.
+CASES = {
+    "d2_bidisperse": (dist.bidisperse(128, 1.4, 0.5, seed=3), 2, 3, (0.83, 0.85)),
+    "d3_mono": (dist.monodisperse(128), 3, 1, (0.63, 0.65)),
+    "d3_lognormal": (dist.lognormal(128, 0.2, seed=2), 3, 2, (0.63, 0.67)),
+    "d4_mono": (dist.monodisperse(128), 4, 1, (0.44, 0.47)),
+}
+
+
+@pytest.fixture(scope="module")
+def quenches() -> dict:
+    """Each case of `CASES` quenched once: name → GenerationResult."""
+    return {name: generators.soft_quench(sizes, d, seed=seed, target_pressure=TARGET)
+            for name, (sizes, d, seed, _) in CASES.items()}
+
+
+def contact_gaps(packing, contacts: np.ndarray) -> np.ndarray:
+    """Relative gaps |r_ij|/σ_ij − 1 of the given pairs, shape (M,)."""
+    i, j = contacts.T
+    r = minimum_image(packing.positions[i] - packing.positions[j], packing.box)
+    sigma = 0.5 * (packing.diameters[i] + packing.diameters[j])
+    return np.linalg.norm(r, axis=1) / sigma - 1.0
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_no_overlap_and_tiny_contact_gaps(quenches, name):
+    result = quenches[name]
+    packing = result.packing
+    _, overlapping = min_gap(packing.positions, packing.diameters, packing.box)
+    assert overlapping == 0
+    gaps = contact_gaps(packing, result.contacts)
+    assert gaps.min() >= 0.0 and gaps.max() < 1e-6
+    # the most overlapping pair was shrunk to a gap of ~1e-12
+    assert gaps.min() < 1e-10
+    np.testing.assert_allclose(packing.diameters, CASES[name][0], rtol=1e-14)
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_pressure_below_target_and_phi_in_band(quenches, name):
+    result = quenches[name]
+    low, high = CASES[name][3]
+    assert 0 < result.extra["pressure"] <= TARGET
+    assert low < result.packing.phi < high
+    assert "converged" in result.status
+    assert result.collisions == result.extra["fire_steps"] > 0
+    assert result.extra["minimisations"] == len(result.history) >= 3
+    assert result.history["pressure"][-1] == result.extra["pressure"]
+    assert np.isnan(result.reduced_pressure)
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_network_is_the_overlap_network_without_rattlers(quenches, name):
+    result = quenches[name]
+    packing, contacts = result.packing, result.contacts
+    n, d = packing.n, packing.d
+    assert contacts.dtype == np.int64 and contacts.ndim == 2 and contacts.shape[1] == 2
+    assert np.all(contacts[:, 0] < contacts[:, 1])
+    assert np.array_equal(contacts, contacts[np.lexsort(contacts.T[::-1])])
+    # The pairs that overlapped before the shrink are those now closer than the largest
+    # overlap was; removing their rattlers recursively gives exactly the network.
+    overlap = result.extra["max_overlap"]
+    pairs = close_pairs(packing.positions, packing.diameters, packing.box,
+                        2 * overlap * packing.diameters.max())
+    inside = pairs.gaps <= overlap * (1 + 1e-6) + 1e-11
+    i, j = pairs.i[inside], pairs.j[inside]
+    rattlers, kept = remove_rattlers(n, d, i, j)
+    network = np.stack([i[kept], j[kept]], axis=1)
+    assert np.array_equal(network[np.lexsort(network.T[::-1])], contacts)
+    counts = np.bincount(contacts.ravel(), minlength=n)
+    assert np.all(counts[~rattlers] >= d + 1) and np.all(counts[rattlers] == 0)
+    stable = result.extra["stable"]
+    assert stable == n - rattlers.sum()
+    assert result.extra["isostaticity_gap"] == len(contacts) - (d * (stable - 1) + 1)
+
+
+def test_networks_are_isostatic_or_nearly(quenches):
+    gaps = {name: result.extra["isostaticity_gap"] for name, result in quenches.items()}
+    assert gaps == {"d2_bidisperse": 0, "d3_mono": 0, "d3_lognormal": 0, "d4_mono": 0}
+
+
+def test_deterministic_and_positions_in_input_order():
+    sizes = dist.bidisperse(64, 1.4, 0.5, seed=1)
+    a, b = (generators.soft_quench(sizes, 3, seed=4) for _ in range(2))
+    np.testing.assert_array_equal(a.packing.positions, b.packing.positions)
+    np.testing.assert_array_equal(a.contacts, b.contacts)
+    np.testing.assert_allclose(a.packing.diameters, sizes, rtol=1e-14)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(diameters=np.array([1.0, -1.0]), d=3), "diameters"),
+    (dict(diameters=np.ones(100), d=1), "dimension"),
+    (dict(diameters=np.ones(100), d=3, phi_start=1.5), "phi_start"),
+    (dict(diameters=np.ones(100), d=3, target_pressure=0.0), "target_pressure"),
+    (dict(diameters=np.ones(100), d=3, force_tolerance=-1e-6), "force_tolerance"),
+    (dict(diameters=np.ones(100), d=3, skin=0.0), "skin"),
+    (dict(diameters=np.ones(100), d=3, max_steps=0), "max_steps"),
+    (dict(diameters=np.ones(8), d=3), "too few particles"),
+    (dict(diameters=np.ones(100), d=3, phi_start=0.3), "below jamming"),
+])
+def test_bad_input(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        generators.soft_quench(**kwargs)
+
+
+def test_import_generators_loads_no_lp_solver():
+    code = ("import generators, sys; generators.soft_quench; "
+            "print(' '.join(sorted(sys.modules)))")
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True).stdout.split()
+    assert not {name.split(".")[0] for name in loaded} & {"highspy", "clarabel", "cvxpy"}
+    assert "calippso.ilp" not in loaded
