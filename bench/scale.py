@@ -1,21 +1,25 @@
-"""How `calippso.jam` scales with N and d: prints one table row per input.
+"""How making and jamming a packing scale with N and d: prints one table row per input.
 
-Every input is an LS packing made by our generator at reduced pressure --pressure (seed 1),
-jammed in a fresh subprocess so that the peak resident memory (RSS) of each row is its own.
-Run from the repository root:
+Every input is made by our generator (seed 1) and jammed in a fresh subprocess, so that the
+peak resident memory (RSS) of each row is its own. `--generator ls` (default): LS to reduced
+pressure --pressure, then `jam`. `--generator quench`: the soft-sphere quench
+(`generators.soft_quench`), then `jam` with the quench's overlap network as the hint
+(network first: certified by Newton, no LP). Run from the repository root:
 
     python bench/scale.py                                  # d = 3: N = 1k … 16k; d = 4, 5: 1k
     python bench/scale.py --cases 3:1024 3:2048 --timeout 900 --json scale.json
     python bench/scale.py --cache /tmp/ls-inputs     # keep the LS inputs for the next run
     python bench/scale.py --cases 4:1024 --set interior_point=hipo   # further jam options
     python bench/scale.py --from-json a.json b.json --plot docs/images/scale.png
+    python bench/scale.py --generator quench --cases 3:1024 3:4096 3:16384 --json quench.json
 
 With --from-json no case is run: the rows are read back (later files win for the same N, d),
 printed, and with --plot drawn as wall time and LPs against N on log-log axes, with the
 fitted exponent of the wall time over the d = 3 rows.
 
-Columns: N, d, LPs, rows of the largest LP, total wall time of `jam` (s), wall time per LP,
-share of it inside the LP solver, peak RSS (MB), phi_J, isostatic, force balance.
+Columns: N, d, seconds to generate the input (0 when read from --cache), LPs, rows of the
+largest LP, total wall time of `jam` (s), wall time per LP, share of it inside the LP solver,
+peak RSS (MB), phi_J, isostatic, force balance.
 A case that exceeds --timeout is reported as such.
 """
 
@@ -33,24 +37,39 @@ DEFAULT_CASES = ["3:1024", "3:2048", "3:4096", "3:8192", "3:16384", "4:1024", "5
 
 CHILD = textwrap.dedent("""
     import json, os, resource, sys, time
+    import numpy as np
     import calippso
     d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
-    options = json.loads(sys.argv[5])
-    path = os.path.join(cache, f"ls_d{d}_n{n}_p{pressure:g}_seed1.npz") if cache else ""
+    options, generator = json.loads(sys.argv[5]), sys.argv[6]
+    name = f"ls_d{d}_n{n}_p{pressure:g}" if generator == "ls" else f"quench_d{d}_n{n}"
+    path = os.path.join(cache, f"{name}_seed1.npz") if cache else ""
+    clock = time.perf_counter()
     if path and os.path.exists(path):
         start = calippso.read(path)
+        with np.load(path) as stored:
+            network = stored["contacts"] if "contacts" in stored.files else None
+        generate = 0.0
     else:
         import generators
-        start = generators.lubachevsky_stillinger(generators.diameters.monodisperse(n), d=d,
-                                                  target_pressure=pressure, seed=1).packing
+        sizes = generators.diameters.monodisperse(n)
+        if generator == "ls":
+            made = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
+                                                     seed=1)
+        else:
+            made = generators.soft_quench(sizes, d, seed=1)
+        start, network = made.packing, getattr(made, "contacts", None)
+        generate = time.perf_counter() - clock
         if path:
-            calippso.write(start, path)
+            extra = {} if network is None else {"contacts": network}
+            np.savez(path, positions=start.positions, diameters=start.diameters,
+                     box=start.box, **extra)
     clock = time.perf_counter()
-    result = calippso.jam(start, **options)
+    result = calippso.jam(start, network=network, **options)
     total = time.perf_counter() - clock
     history = result.history
     print(json.dumps({
-        "n": n, "d": d, "lps": result.iterations, "rows": int(history["rows"].max()),
+        "n": n, "d": d, "generator": generator, "generate": generate,
+        "lps": result.iterations, "rows": int(history["rows"].max()),
         "total": total, "solver": float(history["solver_time"].sum()),
         "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "phi": result.phi, "isostatic": result.isostatic,
@@ -59,12 +78,12 @@ CHILD = textwrap.dedent("""
 
 
 def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "",
-             options: dict | None = None) -> dict:
+             options: dict | None = None, generator: str = "ls") -> dict:
     """Generate (or read from `cache`) and jam one input in a subprocess with the jam
     `options`; the row as a dict."""
     try:
         done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache,
-                               json.dumps(options or {})],
+                               json.dumps(options or {}), generator],
                               capture_output=True, text=True, timeout=timeout, check=True)
     except subprocess.TimeoutExpired:
         return {"n": n, "d": d, "timeout": timeout}
@@ -80,7 +99,8 @@ def format_row(row: dict) -> str:
     if "error" in row:
         return f"{head}  error: {row['error']}"
     per_lp = row["total"] / max(row["lps"], 1)
-    return (f"{head} {row['lps']:>4} {row['rows']:>8} {row['total']:>9.1f} {per_lp:>7.2f} "
+    return (f"{head} {row.get('generate', float('nan')):>9.1f} {row['lps']:>4} {row['rows']:>8} "
+            f"{row['total']:>9.1f} {per_lp:>7.2f} "
             f"{row['solver'] / row['total']:>7.1%} {row['rss_mb']:>8.0f} {row['phi']:>11.8f} "
             f"{'yes' if row['isostatic'] else 'NO':>4} {row['balance']:>8.1e}")
 
@@ -123,7 +143,7 @@ def plot(rows: list[dict], path: str) -> None:
 
 
 def print_rows(rows: list[dict]) -> None:
-    print(f"{'N':>6} {'d':>2} {'LPs':>4} {'rows':>8} {'total s':>9} {'s/LP':>7} "
+    print(f"{'N':>6} {'d':>2} {'make s':>9} {'LPs':>4} {'rows':>8} {'jam s':>9} {'s/LP':>7} "
           f"{'solver':>7} {'RSS MB':>8} {'phi_J':>11} {'iso':>4} {'balance':>8}", flush=True)
     for row in rows:
         print(format_row(row), flush=True)
@@ -143,6 +163,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", nargs="+", default=DEFAULT_CASES, help="inputs as d:N")
     parser.add_argument("--pressure", type=float, default=1e5)
+    parser.add_argument("--generator", choices=["ls", "quench"], default="ls",
+                        help="LS to --pressure, or the soft-sphere quench (network first)")
     parser.add_argument("--timeout", type=float, default=3600.0, help="seconds per case")
     parser.add_argument("--json", help="also write the rows to this JSON file")
     parser.add_argument("--cache", default="", help="folder where LS inputs are kept and reused")
@@ -167,7 +189,8 @@ def main() -> None:
     rows = []
     for case in args.cases:
         d, n = (int(v) for v in case.split(":"))
-        rows.append(run_case(d, n, args.pressure, args.timeout, args.cache, options))
+        rows.append(run_case(d, n, args.pressure, args.timeout, args.cache, options,
+                             args.generator))
         print(format_row(rows[-1]), flush=True)
         if args.json:
             with open(args.json, "w") as stream:
