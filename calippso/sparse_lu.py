@@ -6,8 +6,8 @@ Two implementations behind one interface (`factorize`, then ``solve(b)`` and
 - scipy's SuperLU with the COLAMD column ordering: always available; the least fill of
   SuperLU's orderings on contact Jacobians, and the fastest for small systems;
 - Intel MKL PARDISO through `pypardiso` (the ``pardiso`` extra, x86-64 Linux and Windows):
-  nested-dissection ordering and threads; it fills in far less on large three-dimensional
-  networks and takes over from `PARDISO_MIN_UNKNOWNS` unknowns when it is installed.
+  nested-dissection ordering and threads; it fills in far less on large networks and takes
+  over from `PARDISO_MIN_UNKNOWNS` unknowns when it is installed.
 
 `bench/newton_factorization.py` measures both on jammed packings.
 """
@@ -27,10 +27,10 @@ from scipy.sparse.linalg import splu
 
 __all__ = ["Factors", "factorize", "pardiso_available", "PARDISO_MIN_UNKNOWNS"]
 
-#: PARDISO is used from this many unknowns on (when installed). Below, SuperLU is as fast:
-#: PARDISO's set-up costs more than it saves on a d = 3, N = 1024 network (~3000 unknowns),
-#: while it is faster from d = 4, N = 1024 (~4000) on.
-PARDISO_MIN_UNKNOWNS = 3500
+#: PARDISO is used from this many unknowns on (when installed): from a d = 3, N = 1024
+#: network (~3000 unknowns) on it factorises faster than SuperLU, by more the larger the
+#: network; on small networks both take milliseconds, and SuperLU needs no MKL.
+PARDISO_MIN_UNKNOWNS = 2500
 
 
 class Factors(Protocol):
