@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "overlapping_pairs",
+__all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "contact_pairs",
            "CONVERGED", "UNJAMMED", "REBUILD", "OUT_OF_STEPS"]
 
 #: FIRE parameters of Bitzek et al., PRL 97, 170201 (2006): steps of positive power before Δt
@@ -359,9 +359,9 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, scale: 
 
 
 @njit(cache=True)
-def overlapping_pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
-                      first: np.ndarray, second: np.ndarray):
-    """Every overlapping listed pair (i < j in slot order) and its relative gap |r|/σ − 1 < 0.
+def contact_pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
+                  first: np.ndarray, second: np.ndarray, largest_gap: float):
+    """Every listed pair (i < j in slot order) with relative gap h = |r|/σ − 1 < `largest_gap`.
 
     Returns
     -------
@@ -383,7 +383,8 @@ def overlapping_pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarra
                 dx -= box[mu] * np.rint(dx * inv[mu])
                 r2 += dx * dx
             sigma = 0.5 * scale * (s[i] + s[j])
-            if r2 < sigma * sigma:
-                lower[m], upper[m], gaps[m] = i, j, np.sqrt(r2) / sigma - 1.0
+            gap = np.sqrt(r2) / sigma - 1.0
+            if gap < largest_gap:
+                lower[m], upper[m], gaps[m] = i, j, gap
                 m += 1
     return lower[:m], upper[:m], gaps[:m]

@@ -30,13 +30,11 @@ DT0_3D = 0.1
 #: Δt_max / Δt0. Bitzek et al. use 10; at φ = 0.70 (d = 3) FIRE then never converged (forces
 #: still 0.46 after 1e5 steps) while 5 converged in 1.8e3 steps.
 DT_MAX_FACTOR = 5.0
-#: Force tolerance of the intermediate minimisations, relative to the mean pair force: their
-#: only use is the pressure that sets the next density.
-INTERMEDIATE_TOLERANCE = 1e-3
-#: The final minimisation checks the network at this tolerance and every decade below; it
-#: stops when two decades in a row give the same network (measured, d = 3, N = 1024: from
-#: 1e-4 to 1e-5 2–7 pairs still changed, below 1e-5 none).
-FIRST_CHECK_TOLERANCE = 1e-4
+#: Force tolerance of the intermediate minimisations, relative to the mean pair force. With
+#: 1e-3 (the prototype's) many "minima" were still sliding slowly and unjammed on the next
+#: step, each slide costing up to 5e5 FIRE steps; with 1e-4 none did (d = 3, N = 1024,
+#: 5 seeds: 8.0e5 FIRE steps in all instead of 1.8e6).
+INTERMEDIATE_TOLERANCE = 1e-4
 #: Force floor of the convergence test, × machine epsilon × the box side: the round-off of
 #: the pair vectors (measured: N = 1024, d = 3, box 9.4 σ, p = 2.3e-8: forces converged to
 #: 2.3e-14 but never to 2.3e-15, 1.1 × eps × L).
@@ -54,6 +52,11 @@ UNJAM_FRACTION = 0.1
 #: at least `FIRST_STEP_LEAST` × φ_start down (a φ_start near the typical φ_J).
 FIRST_STEP = 0.5
 FIRST_STEP_LEAST = 0.01
+#: Pairs count as contacts when they overlap by more than this (relative): FIRE leaves a
+#: rattler exactly touching its cage, overlapping or not by round-off (measured |h| ≤ 6e-14,
+#: the smallest overlap of a stable pair 8.7e-11, N = 1024, d = 3, p = 3e-8); a rattler
+#: touching d + 1 neighbours would otherwise pass for a stable particle with zero forces.
+TOUCH = 1e-12
 #: Relative gap left on the most overlapping pair by the final shrink (round-off of |r|/σ at
 #: box sides of ~30 σ is ~1e-14).
 SHRINK_GAP = 1e-12
@@ -182,20 +185,22 @@ class _SoftSpheres:
         return code, pressure
 
     def overlap_network(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Overlapping pairs in original particle indices, i < j, sorted, with their gaps."""
+        """Pairs overlapping by more than `TOUCH`, in original particle indices, i < j,
+        sorted, with their relative gaps."""
         self.rebuild()
-        i, j, gaps = _fire.overlapping_pairs(self.x, self.s, self.scale, self.box,
-                                             *self.lists[:2])
+        i, j, gaps = _fire.contact_pairs(self.x, self.s, self.scale, self.box, *self.lists[:2],
+                                         -TOUCH)
         i, j = self.ids[i], self.ids[j]
         i, j = np.minimum(i, j), np.maximum(i, j)
         order = np.lexsort((j, i))
         return i[order], j[order], gaps[order]
 
-    def stable_network(self) -> np.ndarray:
-        """The overlap network without rattlers (recursively), shape (M, 2), sorted."""
+    def stable_network(self) -> tuple[np.ndarray, int]:
+        """The overlap network without rattlers (recursively), shape (M, 2), sorted, and the
+        number of particles it holds."""
         i, j, _ = self.overlap_network()
-        _, kept = remove_rattlers(self.x.shape[0], self.x.shape[1], i, j)
-        return np.stack([i[kept], j[kept]], axis=1)
+        rattlers, kept = remove_rattlers(self.x.shape[0], self.x.shape[1], i, j)
+        return np.stack([i[kept], j[kept]], axis=1), int(np.count_nonzero(~rattlers))
 
     def positions(self) -> np.ndarray:
         """Positions in the original particle order, shape (N, d)."""
@@ -323,14 +328,17 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     -------
     GenerationResult
         `packing`: after the shrink, particles in the input order, diameters exactly the
-        given ones. `contacts`: the overlap network before the shrink without rattlers
-        (pairs i < j, int64, shape (M, 2), sorted). `reduced_pressure` is nan (soft spheres
+        given ones. `contacts`: the overlap network before the shrink (pairs overlapping by
+        more than 1e-12 σ) without rattlers, removed recursively (pairs i < j, int64,
+        shape (M, 2), sorted lexicographically). `reduced_pressure` is nan (soft spheres
         have no hard-sphere pressure); `collisions` counts FIRE steps; `history` holds one
         record per minimisation (FIRE steps so far, φ before the shrink, pressure, nan).
         `extra`: ``pressure`` (final soft pressure, ε / (mean diameter)^d),
         ``minimisations``, ``fire_steps``, ``rebuilds`` (list rebuilds), ``phi_soft`` (φ
         before the shrink), ``shrink_factor`` (diameters were multiplied by it),
         ``max_overlap`` (largest relative overlap 1 − r/σ before the shrink),
+        ``contact_overlaps`` (1 − r/σ of each pair of `contacts` before the shrink, shape
+        (M,): the soft forces in units of ε/σ),
         ``isostaticity_gap`` (N_c − (d (N_s − 1) + 1) of `contacts`), ``stable``
         (N_s), ``overlap_correction`` (round-off shrink after an independent check, ~0).
 
@@ -369,7 +377,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
             code, pressure = system.minimise(INTERMEDIATE_TOLERANCE, floor,
                                              max_steps - system.steps)
             if code == _fire.CONVERGED and pressure <= target_pressure:
-                code, pressure = _tighten(system, force_tolerance, floor, max_steps)
+                code, pressure = _tighten(system, pressure, force_tolerance, floor, max_steps)
             rows.append((system.steps, phi, pressure, np.nan))
             bar.update(-np.log10(max(pressure, target_pressure)), phi=f"{phi:.6f}",
                        p=f"{pressure:.3g}")
@@ -393,13 +401,23 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     return _shrunk_result(system, diameters, mean, rows, pressure, status, wall)
 
 
-def _tighten(system: _SoftSpheres, force_tolerance: float, pressure_floor: float,
-             max_steps: int) -> tuple[int, float]:
+def _tighten(system: _SoftSpheres, pressure: float, force_tolerance: float,
+             pressure_floor: float, max_steps: int) -> tuple[int, float]:
     """The final minimisation: converge decade by decade until the network stops changing.
 
-    The tolerance starts at `FIRST_CHECK_TOLERANCE` and drops tenfold each round, down to
-    `force_tolerance`; it stops early once two rounds in a row leave the same overlap
-    network without rattlers.
+    From a minimum converged to `INTERMEDIATE_TOLERANCE`, the tolerance drops tenfold each
+    round, down to `force_tolerance`; it stops early once two rounds in a row leave the same
+    overlap network without rattlers, and that network is not hypostatic (measured, d = 3,
+    N = 1024: from 1e-4 to 1e-5 2–7 pairs still changed, below 1e-5 none).
+
+    Parameters
+    ----------
+    system : _SoftSpheres
+        At a minimum converged to `INTERMEDIATE_TOLERANCE`, with pressure `pressure`.
+    force_tolerance, pressure_floor : float
+        Last tolerance; pressure below which the minimum has unjammed.
+    max_steps : int
+        Limit on the FIRE steps of the whole run.
 
     Returns
     -------
@@ -407,18 +425,20 @@ def _tighten(system: _SoftSpheres, force_tolerance: float, pressure_floor: float
         `_fire.CONVERGED`, or `_fire.UNJAMMED` / `_fire.OUT_OF_STEPS` from a round.
     pressure : float
     """
-    tolerance = FIRST_CHECK_TOLERANCE
-    previous = None
-    while True:
-        tolerance = max(tolerance, force_tolerance)
+    code = _fire.CONVERGED
+    tolerance = INTERMEDIATE_TOLERANCE
+    previous, _ = system.stable_network()
+    while tolerance > force_tolerance:
+        tolerance = max(tolerance / 10.0, force_tolerance)
         code, pressure = system.minimise(tolerance, pressure_floor, max_steps - system.steps)
-        if code != _fire.CONVERGED or tolerance == force_tolerance:
-            return code, pressure
-        network = system.stable_network()
-        if previous is not None and np.array_equal(network, previous):
-            return code, pressure
+        if code != _fire.CONVERGED:
+            break
+        network, stable = system.stable_network()
+        d = system.x.shape[1]
+        if np.array_equal(network, previous) and len(network) >= d * (stable - 1) + 1:
+            break
         previous = network
-        tolerance /= 10.0
+    return code, pressure
 
 
 def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, rows: list,
@@ -443,6 +463,6 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, row
         contacts=contacts,
         extra={"pressure": float(pressure), "minimisations": len(rows), "fire_steps": system.steps,
                "rebuilds": system.rebuilds, "phi_soft": system.phi, "shrink_factor": shrink,
-               "max_overlap": -worst, "stable": stable,
+               "max_overlap": -worst, "contact_overlaps": -gaps[kept], "stable": stable,
                "isostaticity_gap": int(contacts.shape[0]) - (d * (stable - 1) + 1),
                "overlap_correction": correction})
