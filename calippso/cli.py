@@ -293,6 +293,40 @@ def generate_ls(
     return _generation_record("ls", generation, calippso.write(generation.packing, output))
 
 
+@generate.command("quench")
+@diameter_options
+@click.option(
+    "--pressure",
+    type=positive(float),
+    default=1e-7,
+    show_default=True,
+    help="Stop once the soft-sphere pressure is at or below this (energy / mean diameter^d).",
+)
+@output_path()
+@output_options
+def generate_quench(n, d, distribution, ratio, std, seed, pressure, output, out):
+    """Soft-sphere quench to a vanishing pressure, then shrunk to hard contact.
+
+    The start of a large packing: `calippso jam OUTPUT --network OUTPUT` certifies its
+    jamming point with no LP. A .npz OUTPUT keeps the overlap network as 'contacts'.
+    """
+    import calippso
+    import generators
+    from .atomic import save_npz_atomic
+
+    sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
+    generation = generators.soft_quench(sizes, d, seed=seed, target_pressure=pressure,
+                                        progress=out.progress)
+    packing = generation.packing
+    if output.suffix.lower() == ".npz" and generation.contacts is not None:
+        save_npz_atomic(output, {"positions": packing.positions, "diameters": packing.diameters,
+                                 "box": packing.box, "contacts": generation.contacts})
+        written = output
+    else:
+        written = calippso.write(packing, output)
+    return _generation_record("quench", generation, written)
+
+
 @generate.command("fb")
 @diameter_options
 @click.option(

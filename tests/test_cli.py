@@ -421,3 +421,20 @@ def test_jam_of_one_sphere_says_why_it_cannot_jam(capfd, tmp_path):
     assert code != 0
     assert err.strip().count("\n") == 0 and "Traceback" not in err
     assert str(single) in err and "cannot jam 1 particle(s) in d = 3" in err
+
+
+def test_generate_quench_keeps_its_network_for_jam(capfd, tmp_path):
+    """The quench's .npz carries its overlap network, and `jam --network` tries it first."""
+    start = tmp_path / "quench.npz"
+    code, out, _ = _run(capfd, "generate", "quench", "--n", "256", "--d", "3", "--seed", "1",
+                        "-o", start, "--json", "--quiet")
+    assert code == 0 and json.loads(out)["protocol"] == "quench"
+    with np.load(start) as stored:
+        assert stored["contacts"].ndim == 2 and stored["contacts"].shape[1] == 2
+    code, out, _ = _run(capfd, "jam", start, "--network", start, "-o", tmp_path / "jammed.npz",
+                        "--json", "--quiet")
+    assert code == 0
+    record = json.loads(out)
+    assert record["isostatic"] and record["force_balance"] < 1e-12
+    status = calippso.load_result(tmp_path / "jammed.npz").status
+    assert "given as a hint" in status or "hint:" in status
