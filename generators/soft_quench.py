@@ -9,6 +9,7 @@ the overlaps; `calippso.jam` can then prove the jamming point from that network.
 from __future__ import annotations
 
 import time
+
 import numpy as np
 
 from calippso.contacts import remove_rattlers
@@ -278,7 +279,7 @@ class _DensitySteps:
         return phi - (pressure - self.aim) / slope
 
 
-def _check_box(positions: np.ndarray, box: np.ndarray, nominal: np.ndarray, skin: float) -> None:
+def _check_box(box: np.ndarray, nominal: np.ndarray, skin: float) -> None:
     """ValueError if the list reach (largest diameter + skin) is not below half the box."""
     reach = float(nominal.max()) + skin
     if reach >= 0.5 * float(box.min()):
@@ -297,12 +298,15 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     uniform random centres in a cubic box at `phi_start` (above jamming), with the harmonic
     repulsion V = ε/2 (1 − r/σ)² for r < σ, are minimised with FIRE 2.0 (Δt_max = 5 Δt0).
     The density then steps down towards jamming: first halfway to a typical φ_J, then along
-    the line p(φ) through the last two minima (p ∝ φ − φ_J), each step aiming 1000× lower in
-    pressure (or at a fraction of `target_pressure`). A step whose energy vanishes (unjammed)
-    is undone and the step halved. Intermediate minima are converged to forces of 1e-3 of
-    the mean pair force; the one below `target_pressure` to `force_tolerance`. Finally all
-    diameters shrink by one factor until the most overlapping pair has a gap of 1e-12: the
-    overlap network becomes the contact network of a nearby hard-sphere jamming point.
+    the line p(φ) through the last two minima (p ∝ φ − φ_J), each step aiming 100× lower in
+    pressure, the last at half of `target_pressure`. A minimisation whose pressure falls
+    below a tenth of its aim has unjammed; it is compressed again from where it slid to.
+    Minima are converged to forces of 1e-4 of the mean pair force; the one at or below
+    `target_pressure` then decade by decade until its overlap network (rattlers removed)
+    is the same two decades in a row and not hypostatic, or `force_tolerance` is reached.
+    Finally all diameters shrink by one factor until the most overlapping pair has a gap of
+    1e-12: the overlap network becomes the contact network of a nearby hard-sphere jamming
+    point, returned as `contacts` for ``calippso.jam(packing, network=contacts)``.
 
     Parameters
     ----------
@@ -318,14 +322,17 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         a typical jamming density (0.94, 0.69, 0.53, 0.35 in d = 2, 3, 4, 5).
     target_pressure : float
         Stop at the first converged minimum with pressure at or below this, in units of
-        ε / (mean diameter)^d. The largest overlap is then ~5 × the pressure (d = 3).
+        ε / (mean diameter)^d. The largest overlap is then ~5 × the pressure (d = 3), and
+        the contact gaps after the shrink lie between 1e-12 and that overlap.
     force_tolerance : float
-        Convergence of the last minimisation: max_i |F_i| at or below this × the mean force
-        of the overlapping pairs.
+        Tightest convergence of the last minimisation: max_i |F_i| at or below this × the
+        mean force of the overlapping pairs (or the round-off floor of the forces,
+        50 × machine epsilon × the box side in mean diameters).
     progress : bool
         Show a tqdm bar (−log10 p); quiet by default.
     skin : float
-        Verlet skin in mean diameters.
+        Largest Verlet skin in mean diameters; once the particles settle, the skin follows
+        their drift per minimisation (down to 0.02).
     max_steps : int
         Limit on the FIRE steps of the whole run.
 
@@ -368,7 +375,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     start = poisson(diameters, d, phi_start, seed)
     box = start.box / mean
     nominal = diameters / mean
-    _check_box(start.positions, box, nominal, skin)
+    _check_box(box, nominal, skin)
     system = _SoftSpheres(start.positions / mean, nominal, box, skin)
     rows: list[tuple] = []
     steps = _DensitySteps(target_pressure, typical)
