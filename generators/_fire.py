@@ -179,7 +179,7 @@ def _pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first: n
             overlaps += 1.0 if r < sigma else 0.0
         for mu in range(d):
             f[i, mu] = f_i[mu]
-    sums[4], sums[5], sums[6] = 0.5 * force_sum, 0.5 * virial, overlaps
+    sums[4], sums[5], sums[6] = force_sum, virial, overlaps
 
 
 @njit(cache=True)
@@ -215,7 +215,7 @@ def _pairs_3d(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first
             virial += magnitude * r
             overlaps += 1.0 if r < sigma else 0.0
         f[i, 0], f[i, 1], f[i, 2] = f0, f1, f2
-    sums[4], sums[5], sums[6] = 0.5 * force_sum, 0.5 * virial, overlaps
+    sums[4], sums[5], sums[6] = force_sum, virial, overlaps
 
 
 @njit(cache=True)

@@ -75,6 +75,19 @@ def test_pressure_below_target_and_phi_in_band(quenches, name):
 
 
 @pytest.mark.parametrize("name", CASES)
+def test_pressure_agrees_with_the_contact_overlaps(quenches, name):
+    # p = Σ f_ij r_ij / (d V) in units of ε/⟨σ⟩^d before the shrink, with f_ij r_ij =
+    # ε δ_ij (1 − δ_ij) for a relative overlap δ_ij (rattlers hold none)
+    result = quenches[name]
+    packing, overlaps = result.packing, result.extra["contact_overlaps"]
+    mean = packing.mean_diameter / result.extra["shrink_factor"]
+    volume = float(np.prod(packing.box))
+    pressure = np.sum(overlaps * (1 - overlaps)) * mean**packing.d / (packing.d * volume)
+    assert pressure == pytest.approx(result.extra["pressure"], rel=1e-6)
+    assert np.all(overlaps > 0) and overlaps.max() == result.extra["max_overlap"]
+
+
+@pytest.mark.parametrize("name", CASES)
 def test_network_is_the_overlap_network_without_rattlers(quenches, name):
     result = quenches[name]
     packing, contacts = result.packing, result.contacts
