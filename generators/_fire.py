@@ -1,4 +1,5 @@
-"""Numba kernels of the soft-sphere quench: harmonic forces, FIRE 2.0 steps, spatial sorting.
+"""Numba kernels of the soft-sphere quench: harmonic forces, FIRE 2.0 at fixed pressure,
+spatial sorting.
 
 Harmonic spheres, V_ij = ε/2 (1 − r_ij/σ_ij)² for r_ij < σ_ij, with ε = 1 and unit masses;
 lengths in mean diameters of the nominal sizes s_i, current diameters σ_i = a s_i (a: the
@@ -16,7 +17,7 @@ import numpy as np
 from numba import njit, prange
 
 __all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "contact_pairs",
-           "CONVERGED", "UNJAMMED", "REBUILD", "OUT_OF_STEPS"]
+           "CONVERGED", "REBUILD", "OUT_OF_STEPS"]
 
 #: FIRE parameters of Bitzek et al., PRL 97, 170201 (2006): steps of positive power before Δt
 #: may grow (also the initial delay of FIRE 2.0), growth and cut factors of Δt, initial
@@ -29,8 +30,12 @@ F_ALPHA = 0.99
 #: Smallest Δt, relative to Δt0 (FIRE 2.0's default, 0.02): the backstep never stalls.
 DT_MIN_FRACTION = 0.02
 
+#: Mass of λ = ln a (the log of the diameter scale) in `fire_run`, per degree of freedom of
+#: the particles.
+SCALE_MASS = 1.0
+
 #: Return codes of `fire_run`.
-CONVERGED, UNJAMMED, REBUILD, OUT_OF_STEPS = 0, 1, 2, 3
+CONVERGED, REBUILD, OUT_OF_STEPS = 0, 1, 2
 
 
 @njit(cache=True)
@@ -355,14 +360,19 @@ def _move(x: np.ndarray, v: np.ndarray, f: np.ndarray, x_built: np.ndarray, dt: 
 
 
 @njit(cache=True)
-def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, scale: float,
-             box: np.ndarray, first: np.ndarray, second: np.ndarray,
-             incoming_start: np.ndarray, incoming: np.ndarray, x_built: np.ndarray,
-             max_drift: float, state: np.ndarray, dt_max: float, dt_min: float,
-             tolerance: float, force_floor: float, pressure_floor: float,
-             pressure_unit: float, max_steps: int):
-    """FIRE 2.0 minimisation at fixed diameters until converged, unjammed, a list rebuild or
-    the step limit.
+def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np.ndarray,
+             first: np.ndarray, second: np.ndarray, incoming_start: np.ndarray,
+             incoming: np.ndarray, x_built: np.ndarray, skin: float, scale_built: float,
+             state: np.ndarray, dt_max: float, dt_min: float, tolerance: float,
+             force_floor: float, target: float, max_steps: int):
+    """FIRE 2.0 minimisation of the enthalpy H = E + p* Ṽ at pressure p* = `target`, until
+    converged, a list rebuild or the step limit.
+
+    The degrees of freedom are the positions (unit masses) and λ = ln a, the logarithm of
+    the diameter scale. Ṽ = V / a^d is the box volume in units of the mean diameter, and
+    −∂H/∂λ = d Ṽ (p* − p) drives λ; λ has the mass `SCALE_MASS` × N d, which gives it a
+    frequency of order one (∂²E/∂λ² ≈ N_c ≈ N d near jamming). Growing the diameters at fixed
+    positions is the same as shrinking the box affinely at fixed diameters.
 
     Parameters
     ----------
@@ -370,59 +380,67 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, scale: 
         Positions and velocities, updated in place (positions are not wrapped).
     f : ndarray, shape (N, d)
         Work array; holds the forces at the returned positions.
-    s, scale, box, first, second, incoming_start, incoming
-        As in `harmonic_forces`; the lists must hold every pair within reach of `x_built`.
+    s, box, first, second, incoming_start, incoming
+        As in `harmonic_forces`; the lists hold every pair within σ + `skin` at the build.
     x_built : ndarray, shape (N, d)
         Positions at the last list build.
-    max_drift : float
-        Half the Verlet skin: a particle that drifted this far asks for a rebuild.
-    state : ndarray, shape (4,)
-        FIRE state (Δt, α, steps of positive power in a row, steps since the run began),
-        carried across rebuilds and updated in place.
+    skin : float
+        Verlet skin at the build: a rebuild is due when 2 × the largest drift plus the growth
+        of the largest diameter since the build exceeds it.
+    scale_built : float
+        Diameter scale at the last list build.
+    state : ndarray, shape (6,)
+        Δt, α, steps of positive power in a row, steps since the minimisation began, λ and
+        its velocity (in units of √mass); carried across rebuilds, updated in place.
     dt_max, dt_min : float
         Bounds on Δt.
     tolerance, force_floor : float
         Converged when max_i |F_i| ≤ max(tolerance × the mean force of the overlapping pairs,
-        force_floor).
-    pressure_floor : float
-        Unjammed when the pressure falls below this.
-    pressure_unit : float
-        Pressure per unit virial, a^d / (d V), so that p = virial × pressure_unit is in units
-        of ε / (mean diameter)^d.
+        force_floor) and |p − p*| ≤ tolerance × p*.
+    target : float
+        p*, in units of ε / (mean diameter)^d.
     max_steps : int
         Steps allowed in this call.
 
     Returns
     -------
     code : int
-        CONVERGED, UNJAMMED, REBUILD (positions moved; rebuild the lists and call again) or
+        CONVERGED, REBUILD (positions and scale moved; rebuild the lists and call again) or
         OUT_OF_STEPS.
     steps : int
         FIRE steps taken in this call.
     pressure : float
-        Pressure at the returned positions.
+        Pressure at the returned positions (before a rebuild: at the previous step's).
     drift : float
         Largest distance a particle moved since the list build.
     """
-    partial = work_array(x.shape[0])
-    pair_force = np.empty((second.shape[0], x.shape[1]))
+    n, d = x.shape
+    volume = np.prod(box)
+    root_mass = np.sqrt(SCALE_MASS * n * d)
+    largest = s.max()
+    partial = work_array(n)
+    pair_force = np.empty((second.shape[0], d))
+    dt, alpha, positive, age = state[0], state[1], state[2], state[3]
+    log_scale, v_scale = state[4], state[5]
+    scale = np.exp(log_scale)
     power, force2, speed2, largest2, force_sum, virial, overlaps = harmonic_forces(
         x, v, s, scale, box, first, second, incoming_start, incoming, pair_force, f, partial)
-    dt, alpha, positive, age = state[0], state[1], state[2], state[3]
     steps = 0
     drift2 = 0.0
     code = OUT_OF_STEPS
     while True:
-        pressure = virial * pressure_unit
+        pressure = virial * scale**d / (d * volume)
+        f_scale = d * volume / scale**d * (target - pressure) / root_mass
         mean_force = force_sum / overlaps if overlaps > 0 else 0.0
-        if overlaps > 0 and largest2 <= max(tolerance * mean_force, force_floor) ** 2:
+        if (overlaps > 0 and largest2 <= max(tolerance * mean_force, force_floor) ** 2
+                and abs(pressure - target) <= tolerance * target):
             code = CONVERGED
-            break
-        if pressure < pressure_floor:
-            code = UNJAMMED
             break
         if steps >= max_steps:
             break
+        power += f_scale * v_scale
+        force2 += f_scale * f_scale
+        speed2 += v_scale * v_scale
         backstep = power <= 0.0
         if backstep:
             positive = 0.0
@@ -430,6 +448,8 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, scale: 
                 dt = max(dt * F_DEC, dt_min)
                 alpha = ALPHA_START
             speed2 = (dt * dt) * force2
+            log_scale -= 0.5 * dt * v_scale / root_mass
+            v_scale = 0.0
         else:
             positive += 1.0
             if positive > N_DELAY:
@@ -437,17 +457,21 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, scale: 
                 alpha *= F_ALPHA
             speed2 = speed2 + 2.0 * dt * power + dt * dt * force2
         push = alpha * np.sqrt(speed2 / force2) if force2 > 0.0 else 0.0
+        v_scale = (1.0 - alpha) * (v_scale + dt * f_scale) + push * f_scale
+        log_scale += dt * v_scale / root_mass
+        scale = np.exp(log_scale)
         drift2 = _move(x, v, f, x_built, dt, 1.0 - alpha, push, backstep)
         steps += 1
         age += 1.0
-        if drift2 > max_drift * max_drift:
+        if 2.0 * np.sqrt(drift2) + largest * max(scale - scale_built, 0.0) > skin:
             code = REBUILD
             break
         power, force2, speed2, largest2, force_sum, virial, overlaps = harmonic_forces(
             x, v, s, scale, box, first, second, incoming_start, incoming, pair_force, f,
             partial)
     state[0], state[1], state[2], state[3] = dt, alpha, positive, age
-    return code, steps, virial * pressure_unit, np.sqrt(drift2)
+    state[4], state[5] = log_scale, v_scale
+    return code, steps, pressure, np.sqrt(drift2)
 
 
 @njit(cache=True)

@@ -32,32 +32,22 @@ DT0_3D = 0.1
 #: still 0.46 after 1e5 steps) while 5 converged in 1.8e3 steps.
 DT_MAX_FACTOR = 5.0
 #: Force tolerance of the intermediate minimisations, relative to the mean pair force. With
-#: 1e-3 (the prototype's) many "minima" were still sliding slowly and unjammed on the next
-#: step, each slide costing up to 5e5 FIRE steps; with 1e-4 none did (d = 3, N = 1024,
-#: 5 seeds: 8.0e5 FIRE steps in all instead of 1.8e6).
+#: the prototype's 1e-3 the last minimisation inherited more relaxation and took longer
+#: (d = 3, N = 1024, 3 seeds: 7.7e5 FIRE steps in all instead of 3.1e5).
 INTERMEDIATE_TOLERANCE = 1e-4
 #: Force floor of the convergence test, × machine epsilon × the box side: the round-off of
 #: the pair vectors (measured: N = 1024, d = 3, box 9.4 σ, p = 2.3e-8: forces converged to
 #: 2.3e-14 but never to 2.3e-15, 1.1 × eps × L).
 ROUNDOFF_FORCE = 50.0
-#: Each density step aims at a pressure this factor below the last (p ∝ φ − φ_J). The
-#: prototype's 1e-3 made the step into p < 1e-6 unjam in 2 of 6 runs (d = 3, N = 1024), each
-#: unjamming costing 1e5–5e5 FIRE steps; with 1e-2 none did, and 5 runs took 6.4e5 FIRE
-#: steps in all instead of 1.0e6.
-PRESSURE_REDUCTION = 1e-2
-#: The last step aims at this fraction of the target pressure, so that it lands below (the
-#: line through the last two minima hit the aim within 3 % in 10 runs, d = 3, N = 1024).
-#: The final minimisation costs ~p^(-1/2) FIRE steps: aiming at 0.6 instead of 0.3 of the
-#: target saved 12 % of all steps.
+#: Pressure of the first minimisation (from random centres), and the largest factor between
+#: the pressures of two successive ones (a geometric ladder down to `TARGET_AIM` × the
+#: target). Measured, d = 3, N = 1024, 3 seeds, FIRE steps in all: factor 1e-3 6.6e5, 1e-2
+#: 6.1e5, 0.1 3.1e5, 0.3 3.6e5: small steps keep each start near its minimum.
+FIRST_PRESSURE = 1e-2
+PRESSURE_REDUCTION = 0.1
+#: The last minimisation holds the pressure at this fraction of the target: its cost grows
+#: as p^(-1/2) (the softest modes), so it stays close to the target.
 TARGET_AIM = 0.5
-#: A minimisation whose pressure falls below this fraction of the pressure its step aimed at
-#: has unjammed. An unjamming configuration slides towards zero energy slowly (N = 1024,
-#: d = 4: 2.9e5 FIRE steps from p = 2e-7 to 1e-10), so it is caught early.
-UNJAM_FRACTION = 0.1
-#: The first density step goes this fraction of the way from φ_start to a typical φ_J, and
-#: at least `FIRST_STEP_LEAST` × φ_start down (a φ_start near the typical φ_J).
-FIRST_STEP = 0.5
-FIRST_STEP_LEAST = 0.01
 #: Pairs count as contacts when they overlap by more than this (relative): FIRE leaves a
 #: rattler exactly touching its cage, overlapping or not by round-off (measured |h| ≤ 6e-14,
 #: the smallest overlap of a stable pair 8.7e-11, N = 1024, d = 3, p = 3e-8); a rattler
@@ -68,8 +58,6 @@ TOUCH = 1e-12
 SHRINK_GAP = 1e-12
 #: phi_start defaults to this factor × a typical jamming density of the dimension.
 PHI_START_FACTOR = 1.12
-#: Most minimisations (density steps) in one run; a run needs ~5–15.
-MAX_MINIMISATIONS = 200
 #: The Verlet skin adapts between minimisations: after one without a list rebuild it becomes
 #: `SKIN_DRIFT_FACTOR` × the largest drift seen (at least `SKIN_MIN` mean diameters); after
 #: one with rebuilds it doubles, up to the caller's skin. Near jamming the particles move
@@ -123,16 +111,13 @@ class _SoftSpheres:
         self.dt0 = DT0_3D * np.sqrt(3.0 / d) * float(nominal.min())
         self.force_floor = ROUNDOFF_FORCE * np.finfo(np.float64).eps * float(box.max())
         self.x_built = self.x.copy()
+        self.scale_built = self.scale
         self.lists: tuple[np.ndarray, ...] = ()
 
     @property
     def phi(self) -> float:
         """Packing fraction at the current scale."""
         return self.phi_unit * self.scale ** self.x.shape[1]
-
-    def set_phi(self, phi: float) -> None:
-        """Scale the diameters to packing fraction `phi` (positions unchanged)."""
-        self.scale = (phi / self.phi_unit) ** (1.0 / self.x.shape[1])
 
     def rebuild(self) -> None:
         """Wrap, re-sort the particles by cell, and rebuild the Verlet lists."""
@@ -143,43 +128,43 @@ class _SoftSpheres:
         self.lists = _fire.pair_lists(*verlet_lists(self.x, self.box, self.scale * self.s,
                                                     self.skin))
         self.x_built = self.x.copy()
+        self.scale_built = self.scale
         self.rebuilds += 1
 
-    def minimise(self, tolerance: float, pressure_floor: float,
-                 max_steps: int) -> tuple[int, float]:
-        """FIRE from rest at the current scale until converged, unjammed or out of steps.
+    def minimise(self, pressure: float, tolerance: float, max_steps: int) -> tuple[int, float]:
+        """FIRE from rest at fixed pressure (enthalpy) until converged or out of steps.
 
         Parameters
         ----------
+        pressure : float
+            Target pressure p*, in units of ε / (mean diameter)^d.
         tolerance : float
             Converged when max_i |F_i| ≤ tolerance × the mean force of the overlapping pairs
-            (or the round-off floor of the forces, `ROUNDOFF_FORCE` × eps × L).
-        pressure_floor : float
-            Unjammed when the pressure drops below this (ε / mean diameter^d).
+            (or the round-off floor of the forces, `ROUNDOFF_FORCE` × eps × L) and
+            |p − p*| ≤ tolerance × p*.
         max_steps : int
             Steps allowed.
 
         Returns
         -------
         code : int
-            `_fire.CONVERGED`, `_fire.UNJAMMED` or `_fire.OUT_OF_STEPS`.
+            `_fire.CONVERGED` or `_fire.OUT_OF_STEPS`.
         pressure : float
-            Pressure at the end, in units of ε / (mean diameter)^d.
+            Pressure at the end.
         """
-        d = self.x.shape[1]
         self.v[:] = 0.0
-        state = np.array([self.dt0, _fire.ALPHA_START, 0.0, 0.0])
-        unit = self.scale**d / (d * float(np.prod(self.box)))
+        state = np.array([self.dt0, _fire.ALPHA_START, 0.0, 0.0, np.log(self.scale), 0.0])
         self.rebuild()
         built = self.rebuilds
         taken = 0
         while True:
-            code, steps, pressure, drift = _fire.fire_run(
-                self.x, self.v, self.f, self.s, self.scale, self.box, *self.lists,
-                self.x_built, 0.5 * self.skin, state, DT_MAX_FACTOR * self.dt0,
-                _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure_floor,
-                unit, max_steps - taken)
+            code, steps, reached, drift = _fire.fire_run(
+                self.x, self.v, self.f, self.s, self.box, *self.lists, self.x_built,
+                self.skin, self.scale_built, state, DT_MAX_FACTOR * self.dt0,
+                _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure,
+                max_steps - taken)
             taken += steps
+            self.scale = float(np.exp(state[4]))
             if code != _fire.REBUILD:
                 break
             self.rebuild()
@@ -188,7 +173,7 @@ class _SoftSpheres:
             self.skin = min(self.max_skin, max(SKIN_MIN, SKIN_DRIFT_FACTOR * drift))
         else:
             self.skin = min(self.max_skin, 2.0 * self.skin)
-        return code, pressure
+        return code, reached
 
     def overlap_network(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs overlapping by more than `TOUCH`, in original particle indices, i < j,
@@ -215,77 +200,30 @@ class _SoftSpheres:
         return out
 
 
-class _DensitySteps:
-    """Chooses the density of each minimisation from the outcomes of the earlier ones.
-
-    Down from a jammed minimum (φ, p): the first step goes `FIRST_STEP` of the way to a
-    typical φ_J; later ones follow the line p(φ) through the last two jammed minima
-    (p ∝ φ − φ_J), aimed at max(`TARGET_AIM` × target, `PRESSURE_REDUCTION` × p). Near
-    p → 0 an isostatic minimum decompressed by a hair can lose a contact and slide into
-    a zero-energy state of another basin (measured at N = 1024: jammed at p = 1.03e-7,
-    unjammed at every density below, so that restoring it and bisecting never ends). So an
-    unjammed configuration (pressure below `UNJAM_FRACTION` × the aim) is kept and
-    compressed again from its own density, by the aimed pressure over the slope, doubled
-    after every further unjamming (its own φ_J lies above the density at which it
-    unjammed, by an unknown amount).
-
-    Parameters
-    ----------
-    target : float
-        Target pressure.
-    typical : float
-        A typical φ_J of the dimension.
+def _pressure_ladder(final: float) -> np.ndarray:
+    """Pressures of the minimisations: geometric from `FIRST_PRESSURE` down to `final`, in
+    steps no larger than a factor 1/`PRESSURE_REDUCTION` (a single one if `final` is higher).
     """
-
-    def __init__(self, target: float, typical: float) -> None:
-        self.target = target
-        self.typical = typical
-        self.last: tuple[float, float] | None = None   # the last jammed minimum (φ, p)
-        self.slope: float | None = None                # dp/dφ from two jammed minima
-        self.aim = target
-        self.unjammed_at: float | None = None
-        self.unjammings = 0                            # since the last jammed minimum
-
-    def jammed(self, phi: float, pressure: float) -> None:
-        """Record a jammed minimum at density `phi` with pressure `pressure`."""
-        if self.last is not None and self.unjammings == 0 and phi != self.last[0]:
-            slope = (self.last[1] - pressure) / (self.last[0] - phi)
-            if slope > 0:
-                self.slope = slope
-        self.last = (phi, pressure)
-        self.unjammings = 0
-
-    @property
-    def pressure_floor(self) -> float:
-        """Pressure below which the next minimisation counts as unjammed."""
-        return UNJAM_FRACTION * self.aim
-
-    def unjammed(self, phi: float) -> None:
-        """Record a minimisation at density `phi` whose energy vanished."""
-        self.unjammed_at = phi
-        self.unjammings += 1
-
-    def next_phi(self) -> float:
-        """Density of the next minimisation."""
-        phi, pressure = self.last
-        slope = self.slope
-        if slope is None:           # one jammed minimum so far: p ∝ φ − φ_typical
-            slope = pressure / max(phi - self.typical, FIRST_STEP_LEAST * phi)
-        if self.unjammings:
-            return self.unjammed_at + self.aim / slope * 2.0 ** (self.unjammings - 1)
-        if self.slope is None:
-            return phi - FIRST_STEP * max(phi - self.typical, FIRST_STEP_LEAST * phi)
-        self.aim = max(TARGET_AIM * self.target, PRESSURE_REDUCTION * pressure)
-        return phi - (pressure - self.aim) / slope
+    if final >= FIRST_PRESSURE:
+        return np.array([final])
+    steps = int(np.ceil(np.log(FIRST_PRESSURE / final) / np.log(1.0 / PRESSURE_REDUCTION)))
+    ladder = FIRST_PRESSURE * (final / FIRST_PRESSURE) ** (np.arange(steps + 1) / steps)
+    ladder[-1] = final
+    return ladder
 
 
-def _check_box(box: np.ndarray, nominal: np.ndarray, skin: float) -> None:
-    """ValueError if the list reach (largest diameter + skin) is not below half the box."""
-    reach = float(nominal.max()) + skin
+def _check_box(box: np.ndarray, nominal: np.ndarray, skin: float, phi_start: float,
+               densest: float) -> None:
+    """ValueError if the list reach (largest diameter + skin) may not stay below half the box.
+
+    The diameters grow by (φ/φ_start)^(1/d) when the quench compresses; `densest` bounds φ.
+    """
+    growth = max(1.0, densest / phi_start) ** (1.0 / box.shape[0])
+    reach = float(nominal.max()) * growth + skin
     if reach >= 0.5 * float(box.min()):
         raise ValueError(f"too few particles: the box side {box.min():.3g} (mean diameters) is "
-                         f"not above twice the largest diameter plus the skin ({reach:.3g}); "
-                         f"use more particles")
+                         f"not above twice the largest diameter plus the skin ({reach:.3g} "
+                         f"at φ = {max(densest, phi_start):.3g}); use more particles")
 
 
 def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = None,
@@ -294,15 +232,15 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
                 max_steps: int = 50_000_000) -> GenerationResult:
     """Quench harmonic soft spheres to a vanishing pressure, then shrink them to hard contact.
 
-    The route of O'Hern, Silbert, Liu & Nagel (2003) into a hard-sphere jamming basin:
-    uniform random centres in a cubic box at `phi_start` (above jamming), with the harmonic
-    repulsion V = ε/2 (1 − r/σ)² for r < σ, are minimised with FIRE 2.0 (Δt_max = 5 Δt0).
-    The density then steps down towards jamming: first halfway to a typical φ_J, then along
-    the line p(φ) through the last two minima (p ∝ φ − φ_J), each step aiming 100× lower in
-    pressure, the last at half of `target_pressure`. A minimisation whose pressure falls
-    below a tenth of its aim has unjammed; it is compressed again from where it slid to.
-    Minima are converged to forces of 1e-4 of the mean pair force; the one at or below
-    `target_pressure` then decade by decade until its overlap network (rattlers removed)
+    The route of O'Hern, Silbert, Liu & Nagel (2003) into a hard-sphere jamming basin, with
+    the pressure controlled directly: uniform random centres in a cubic box at `phi_start`,
+    with the harmonic repulsion V = ε/2 (1 − r/σ)² for r < σ, are brought to enthalpy minima
+    H = E + p* V by FIRE 2.0 (Δt_max = 5 Δt0), the diameter scale being one more degree of
+    freedom. The pressures p* go down from 1e-2 by factors of 100 to half of
+    `target_pressure`. At fixed pressure a minimum always exists, so no step can unjam (at
+    fixed density, decompression steps near p → 0 unjammed and slid towards zero energy for
+    up to 4e5 FIRE steps each). Minima are converged to forces of 1e-4 of the mean pair
+    force; the last one then decade by decade until its overlap network (rattlers removed)
     is the same two decades in a row and not hypostatic, or `force_tolerance` is reached.
     Finally all diameters shrink by one factor until the most overlapping pair has a gap of
     1e-12: the overlap network becomes the contact network of a nearby hard-sphere jamming
@@ -318,12 +256,13 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     seed : int
         Seed of the random centres.
     phi_start : float, optional
-        Packing fraction of the first minimisation, in (0, 1), above jamming; default 1.12 ×
-        a typical jamming density (0.94, 0.69, 0.53, 0.35 in d = 2, 3, 4, 5).
+        Packing fraction of the random centres, in (0, 1); default 1.12 × a typical jamming
+        density (0.94, 0.69, 0.53, 0.35 in d = 2, 3, 4, 5). The first minimisation moves it
+        to where the pressure is 1e-2.
     target_pressure : float
-        Stop at the first converged minimum with pressure at or below this, in units of
-        ε / (mean diameter)^d. The largest overlap is then ~5 × the pressure (d = 3), and
-        the contact gaps after the shrink lie between 1e-12 and that overlap.
+        The last minimum has half this pressure, in units of ε / (mean diameter)^d. The
+        largest overlap is then ~5 × the target (d = 3), and the contact gaps after the
+        shrink lie between 1e-12 and that overlap.
     force_tolerance : float
         Tightest convergence of the last minimisation: max_i |F_i| at or below this × the
         mean force of the overlapping pairs (or the round-off floor of the forces,
@@ -358,7 +297,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     ------
     ValueError
         On non-positive diameters, d < 2, phi_start outside (0, 1), non-positive pressure,
-        tolerance or skin, too few particles for the box, or a phi_start below jamming.
+        tolerance or skin, a non-positive max_steps, or too few particles for the box.
     """
     wall = time.perf_counter()
     diameters = check_diameters(diameters)
@@ -375,46 +314,31 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     start = poisson(diameters, d, phi_start, seed)
     box = start.box / mean
     nominal = diameters / mean
-    _check_box(box, nominal, skin)
+    _check_box(box, nominal, skin, phi_start, PHI_START_FACTOR * typical)
     system = _SoftSpheres(start.positions / mean, nominal, box, skin)
     rows: list[tuple] = []
-    steps = _DensitySteps(target_pressure, typical)
-    status = f"stopped after {MAX_MINIMISATIONS} minimisations"
-    bar = Progress(progress, -np.log10(target_pressure), "soft quench -log10(p)")
+    ladder = _pressure_ladder(TARGET_AIM * target_pressure)
+    bar = Progress(progress, -np.log10(ladder[-1]), "soft quench -log10(p)")
     try:
-        phi = phi_start
-        while len(rows) < MAX_MINIMISATIONS:
-            system.set_phi(phi)
-            floor = steps.pressure_floor
-            code, pressure = system.minimise(INTERMEDIATE_TOLERANCE, floor,
+        for aim in ladder:
+            code, pressure = system.minimise(aim, INTERMEDIATE_TOLERANCE,
                                              max_steps - system.steps)
-            if code == _fire.CONVERGED and pressure <= target_pressure:
-                code, pressure = _tighten(system, pressure, force_tolerance, floor, max_steps)
-            rows.append((system.steps, phi, pressure, np.nan))
-            bar.update(-np.log10(max(pressure, target_pressure)), phi=f"{phi:.6f}",
-                       p=f"{pressure:.3g}")
+            if code == _fire.CONVERGED and aim == ladder[-1]:
+                code, pressure = _tighten(system, aim, force_tolerance, max_steps)
+            rows.append((system.steps, system.phi, pressure, np.nan))
+            bar.update(-np.log10(pressure), phi=f"{system.phi:.6f}", p=f"{pressure:.3g}")
             if code == _fire.OUT_OF_STEPS:
                 status = f"stopped at max_steps = {max_steps} (pressure {pressure:.3g})"
                 break
-            if code == _fire.UNJAMMED:
-                if steps.last is None:
-                    raise ValueError(f"phi_start = {phi_start} is below jamming for these "
-                                     f"spheres (the energy vanished); use a larger phi_start")
-                steps.unjammed(phi)
-            else:
-                steps.jammed(phi, pressure)
-                if pressure <= target_pressure:
-                    status = (f"converged at pressure {pressure:.3g} <= target "
-                              f"{target_pressure:.3g}")
-                    break
-            phi = steps.next_phi()
+        else:
+            status = f"converged at pressure {pressure:.3g} <= target {target_pressure:.3g}"
     finally:
         bar.close()
     return _shrunk_result(system, diameters, mean, rows, pressure, status, wall)
 
 
-def _tighten(system: _SoftSpheres, pressure: float, force_tolerance: float,
-             pressure_floor: float, max_steps: int) -> tuple[int, float]:
+def _tighten(system: _SoftSpheres, target: float, force_tolerance: float,
+             max_steps: int) -> tuple[int, float]:
     """The final minimisation: converge decade by decade until the network stops changing.
 
     From a minimum converged to `INTERMEDIATE_TOLERANCE`, the tolerance drops tenfold each
@@ -425,24 +349,26 @@ def _tighten(system: _SoftSpheres, pressure: float, force_tolerance: float,
     Parameters
     ----------
     system : _SoftSpheres
-        At a minimum converged to `INTERMEDIATE_TOLERANCE`, with pressure `pressure`.
-    force_tolerance, pressure_floor : float
-        Last tolerance; pressure below which the minimum has unjammed.
+        At a minimum converged to `INTERMEDIATE_TOLERANCE` at pressure `target`.
+    target : float
+        Pressure of the minimisation.
+    force_tolerance : float
+        Last tolerance.
     max_steps : int
         Limit on the FIRE steps of the whole run.
 
     Returns
     -------
     code : int
-        `_fire.CONVERGED`, or `_fire.UNJAMMED` / `_fire.OUT_OF_STEPS` from a round.
+        `_fire.CONVERGED`, or `_fire.OUT_OF_STEPS` from a round.
     pressure : float
     """
-    code = _fire.CONVERGED
+    code, pressure = _fire.CONVERGED, target
     tolerance = INTERMEDIATE_TOLERANCE
     previous, _ = system.stable_network()
     while tolerance > force_tolerance:
         tolerance = max(tolerance / 10.0, force_tolerance)
-        code, pressure = system.minimise(tolerance, pressure_floor, max_steps - system.steps)
+        code, pressure = system.minimise(target, tolerance, max_steps - system.steps)
         if code != _fire.CONVERGED:
             break
         network, stable = system.stable_network()

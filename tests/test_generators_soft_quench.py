@@ -131,6 +131,12 @@ def test_deterministic_whatever_the_threads_and_in_input_order():
     np.testing.assert_allclose(a.packing.diameters, sizes, rtol=1e-14)
 
 
+def test_a_start_below_jamming_is_compressed():
+    result = generators.soft_quench(dist.monodisperse(64), 3, seed=2, phi_start=0.3)
+    assert result.history["phi"][0] > 0.55 and 0.6 < result.packing.phi < 0.66
+    assert result.extra["pressure"] <= TARGET
+
+
 @pytest.mark.parametrize("kwargs, message", [
     (dict(diameters=np.array([1.0, -1.0]), d=3), "diameters"),
     (dict(diameters=np.ones(100), d=1), "dimension"),
@@ -140,7 +146,7 @@ def test_deterministic_whatever_the_threads_and_in_input_order():
     (dict(diameters=np.ones(100), d=3, skin=0.0), "skin"),
     (dict(diameters=np.ones(100), d=3, max_steps=0), "max_steps"),
     (dict(diameters=np.ones(8), d=3), "too few particles"),
-    (dict(diameters=np.ones(100), d=3, phi_start=0.3), "below jamming"),
+    (dict(diameters=np.ones(14), d=3, phi_start=0.1), "too few particles"),  # grows
 ])
 def test_bad_input(kwargs, message):
     with pytest.raises(ValueError, match=message):
