@@ -24,7 +24,8 @@ from generators import diameters as dist
 TARGET = 1e-7
 
 #: (name, diameters, d, seed, φ band). Bands: d = 3 monodisperse 0.63–0.65 and d = 2
-#: bidisperse 1:1.4 0.83–0.85 (O'Hern et al. at small N); d = 4 around LS's 0.459.
+#: bidisperse 1:1.4 0.83–0.85 (O'Hern et al. at small N); d = 4 0.44–0.47 (LS to p = 1e5:
+#: 0.456 at N = 256; this quench 0.455 at N = 1000 and 0.446 at N = 128).
 CASES = {
     "d2_bidisperse": (dist.bidisperse(128, 1.4, 0.5, seed=3), 2, 3, (0.83, 0.85)),
     "d3_mono": (dist.monodisperse(128), 3, 1, (0.63, 0.65)),
