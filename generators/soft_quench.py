@@ -175,16 +175,20 @@ class _SoftSpheres:
             self.skin = min(self.max_skin, 2.0 * self.skin)
         return code, reached
 
-    def overlap_network(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Pairs overlapping by more than `TOUCH`, in original particle indices, i < j,
-        sorted, with their relative gaps."""
+    def pairs_below(self, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pairs with relative gap |r|/σ − 1 below `gap`, in original particle indices,
+        i < j, sorted lexicographically, with their gaps."""
         self.rebuild()
         i, j, gaps = _fire.contact_pairs(self.x, self.s, self.scale, self.box, *self.lists[:2],
-                                         -TOUCH)
+                                         gap)
         i, j = self.ids[i], self.ids[j]
         i, j = np.minimum(i, j), np.maximum(i, j)
         order = np.lexsort((j, i))
         return i[order], j[order], gaps[order]
+
+    def overlap_network(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pairs overlapping by more than `TOUCH` (`pairs_below`)."""
+        return self.pairs_below(-TOUCH)
 
     def stable_network(self) -> tuple[np.ndarray, int]:
         """The overlap network without rattlers (recursively), shape (M, 2), sorted, and the
@@ -289,7 +293,10 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         before the shrink), ``shrink_factor`` (diameters were multiplied by it),
         ``max_overlap`` (largest relative overlap 1 − r/σ before the shrink),
         ``contact_overlaps`` (1 − r/σ of each pair of `contacts` before the shrink, shape
-        (M,): the soft forces in units of ε/σ),
+        (M,): the soft forces in units of ε/σ), ``near_contacts`` and ``near_gaps`` (the
+        pairs that did not overlap but were closer than the largest overlap, shape (K, 2),
+        i < j, sorted, and their relative gaps: the candidates to join the hard-sphere
+        network, which is the limit p → 0 and can differ from `contacts` by a few pairs),
         ``isostaticity_gap`` (N_c − (d (N_s − 1) + 1) of `contacts`), ``stable``
         (N_s), ``overlap_correction`` (round-off shrink after an independent check, ~0).
 
@@ -389,6 +396,8 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, row
     stable = int(n - np.count_nonzero(rattlers))
     worst = float(gaps.min()) if gaps.size else 0.0
     shrink = (1.0 + min(worst, 0.0)) / (1.0 + SHRINK_GAP)
+    near_i, near_j, near_gaps = system.pairs_below(-worst)
+    near = near_gaps >= -TOUCH
     # Lengths back in the caller's units, with the diameters exactly the given ones.
     factor = mean / (system.scale * shrink)
     positions = system.positions() * factor
@@ -401,6 +410,8 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, row
         contacts=contacts,
         extra={"pressure": float(pressure), "minimisations": len(rows), "fire_steps": system.steps,
                "rebuilds": system.rebuilds, "phi_soft": system.phi, "shrink_factor": shrink,
-               "max_overlap": -worst, "contact_overlaps": -gaps[kept], "stable": stable,
+               "max_overlap": -worst, "contact_overlaps": -gaps[kept],
+               "near_contacts": np.stack([near_i[near], near_j[near]], axis=1),
+               "near_gaps": near_gaps[near], "stable": stable,
                "isostaticity_gap": int(contacts.shape[0]) - (d * (stable - 1) + 1),
                "overlap_correction": correction})

@@ -110,6 +110,12 @@ def test_network_is_the_overlap_network_without_rattlers(quenches, name):
     assert np.all(counts[~rattlers] >= d + 1) and np.all(counts[rattlers] == 0)
     stable = result.extra["stable"]
     assert stable == n - rattlers.sum()
+    # near contacts: the pairs closer than the largest overlap that did not overlap
+    near, near_gaps = result.extra["near_contacts"], result.extra["near_gaps"]
+    assert near.dtype == np.int64 and near.shape == (len(near_gaps), 2)
+    assert np.all(near[:, 0] < near[:, 1])
+    assert not set(map(tuple, near.tolist())) & set(map(tuple, contacts.tolist()))
+    assert np.all((near_gaps >= -1e-12) & (near_gaps < overlap))
     assert result.extra["isostaticity_gap"] == len(contacts) - (d * (stable - 1) + 1)
 
 
