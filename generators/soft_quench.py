@@ -28,8 +28,8 @@ __all__ = ["soft_quench"]
 #: FIRE base time step, in units of √(m σ²/ε) for the smallest diameter σ, at d = 3. It is
 #: scaled by √(3/d) because the stiffest mode grows with the number of contacts (~2d).
 DT0_3D = 0.1
-#: Δt_max / Δt0. Bitzek et al. use 10; at φ = 0.70 (d = 3) FIRE then never converged (forces
-#: still 0.46 after 1e5 steps) while 5 converged in 1.8e3 steps.
+#: Δt_max / Δt0. Bitzek et al. use 10; in the one-core prototype at φ = 0.70 (d = 3) FIRE
+#: then never converged (forces still 0.46 after 1e5 steps) while 5 converged in 1.8e3.
 DT_MAX_FACTOR = 5.0
 #: Force tolerance of the intermediate minimisations, relative to the mean pair force. With
 #: the prototype's 1e-3 the last minimisation inherited more relaxation and took longer
@@ -45,8 +45,8 @@ ROUNDOFF_FORCE = 50.0
 #: 6.1e5, 0.1 3.1e5, 0.3 3.6e5: small steps keep each start near its minimum.
 FIRST_PRESSURE = 1e-2
 PRESSURE_REDUCTION = 0.1
-#: The last minimisation holds the pressure at this fraction of the target: its cost grows
-#: as p^(-1/2) (the softest modes), so it stays close to the target.
+#: The last minimisation holds the pressure at this fraction of the target: safely below it,
+#: and not much lower, since its cost grows as p^(-1/2) (the softest modes).
 TARGET_AIM = 0.5
 #: Pairs count as contacts when they overlap by more than this (relative): FIRE leaves a
 #: rattler exactly touching its cage, overlapping or not by round-off (measured |h| ≤ 6e-14,
@@ -240,7 +240,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     the pressure controlled directly: uniform random centres in a cubic box at `phi_start`,
     with the harmonic repulsion V = ε/2 (1 − r/σ)² for r < σ, are brought to enthalpy minima
     H = E + p* V by FIRE 2.0 (Δt_max = 5 Δt0), the diameter scale being one more degree of
-    freedom. The pressures p* go down from 1e-2 by factors of 100 to half of
+    freedom. The pressures p* go down from 1e-2 in equal factors of at most 10 to half of
     `target_pressure`. At fixed pressure a minimum always exists, so no step can unjam (at
     fixed density, decompression steps near p → 0 unjammed and slid towards zero energy for
     up to 4e5 FIRE steps each). Minima are converged to forces of 1e-4 of the mean pair
