@@ -65,7 +65,8 @@ from scipy.stats import chi2
 from .sample import PooledSample
 
 __all__ = ["FIT_METHODS", "FIT_MODELS", "LR_SIGNIFICANCE", "MIN_GROUPS_FOR_PACKING_BOOTSTRAP",
-           "MIN_POINTS", "MIN_RELIABLE_POINTS", "PowerLawFit", "fit_cumulative_power_law"]
+           "MIN_POINTS", "MIN_RELIABLE_POINTS", "PowerLawFit", "fit_cumulative_power_law",
+           "window_mle"]
 
 #: Pooled packings from which the bootstrap resamples packings instead of values.
 MIN_GROUPS_FOR_PACKING_BOOTSTRAP = 8
@@ -164,8 +165,28 @@ def _power_law_loglik(mean_log: float, alpha: float, la: float, span: float) -> 
             + (alpha - 1.0) * mean_log)
 
 
-def _window_mle(x: np.ndarray, a: float, b: float) -> float:
-    """Maximum-likelihood α for values `x` in [a, b] with density ∝ x^(α−1) on [a, b]."""
+def window_mle(x: np.ndarray, a: float, b: float) -> float:
+    """Maximum-likelihood exponent α of a pure power law on a fixed window [a, b].
+
+    Parameters
+    ----------
+    x : array_like, shape (K,)
+        The sample values inside the window (all in [a, b], positive).
+    a, b : float
+        Lower and upper ends of the window, 0 < a < b (units of `x`).
+
+    Returns
+    -------
+    float
+        α of the density ∝ x^(α−1) on [a, b] (cumulative C ∝ x^α) that maximises the
+        likelihood of `x`; ±1e4 or beyond when the values pile up at one end.
+
+    Raises
+    ------
+    ValueError
+        The window is empty (a = b).
+    """
+    x = np.asarray(x, dtype=float)
     mean_log = float(np.mean(np.log(x)))
     la, lb = np.log(a), np.log(b)
     span = lb - la
@@ -194,6 +215,9 @@ def _window_mle(x: np.ndarray, a: float, b: float) -> float:
         if hi > 1e4:
             return float(hi)
     return float(brentq(score, lo, hi, xtol=1e-12))
+
+
+_window_mle = window_mle
 
 
 def _window_mle_cutoff(x: np.ndarray, a: float, b: float,
@@ -265,7 +289,7 @@ def _fit(values: np.ndarray, normalization: float, upper: float, min_count: int,
         slope = float(np.polyfit(np.log(x), np.log(c), 1)[0])
         model = "power_law"
     else:
-        slope = _window_mle(x, a, b)
+        slope = window_mle(x, a, b)
         if model != "power_law":
             mean_log = float(np.mean(np.log(x)))
             pure = _power_law_loglik(mean_log, slope, math.log(a), math.log(b / a))

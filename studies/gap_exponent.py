@@ -4,8 +4,8 @@ For every seed and pressure it makes an LS packing (N = 1024, d = 3, growth rate
 jams it with the default `calippso.jam` settings, and pools the gaps h = |r|/σ − 1 in a
 fixed window [1e-6, 1e-2]. Run from the repository root:
 
-    python bench/gap_exponent.py --keep /tmp/gap-exponent            # seeds 2-21, p = 1e5, 1e12
-    python bench/gap_exponent.py --seeds 2 3 4 --pressures 1e5
+    python studies/gap_exponent.py --keep /tmp/gap-exponent            # seeds 2-21, p = 1e5, 1e12
+    python studies/gap_exponent.py --seeds 2 3 4 --pressures 1e5
 
 Printed per pressure: mean φ_J; γ over pairs of stable particles (the definition of
 `calippso.analysis`) and over all pairs, rattlers included, each a maximum-likelihood fit
@@ -25,7 +25,7 @@ import numpy as np
 
 import calippso
 from calippso.analysis import gaps as stable_gaps
-from calippso.analysis.fits import _window_mle
+from calippso.analysis.fits import window_mle
 from calippso.neighbors import NeighborSearch
 
 WINDOW = (1e-6, 1e-2)
@@ -74,7 +74,7 @@ def in_window(h: np.ndarray) -> np.ndarray:
 def gamma_with_interval(per_packing: list[np.ndarray]) -> str:
     """γ = 1 − α of the pooled gaps, with the 2.5–97.5 % range over resampled packings."""
     def gamma(groups):
-        return 1.0 - _window_mle(np.concatenate(groups), *WINDOW)
+        return 1.0 - window_mle(np.concatenate(groups), *WINDOW)
 
     rng = np.random.default_rng(0)
     resampled = [gamma([per_packing[k] for k in rng.integers(0, len(per_packing),

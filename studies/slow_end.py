@@ -12,8 +12,8 @@ translation removed, in mean diameters). Then, per final rate, the exponents of 
 packings (`calippso.analysis.analyze`, default windows, 1000 resamples of whole packings).
 Run from the repository root:
 
-    python bench/slow_end.py --rates none 1e-3 1e-4 --seeds 2 3 4 --keep /tmp/slow-end
-    python bench/slow_end.py --rates 1e-3 --seeds $(seq 2 21) --keep /tmp/slow-end
+    python studies/slow_end.py --rates none 1e-3 1e-4 --seeds 2 3 4 --keep /tmp/slow-end
+    python studies/slow_end.py --rates 1e-3 --seeds $(seq 2 21) --keep /tmp/slow-end
 
 `--keep DIR` stores the LS states and the jammed packings and reads them back on the next
 run (the wall times printed are then those of the stored runs).

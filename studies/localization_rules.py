@@ -9,8 +9,8 @@ prints the time of the opening response per packing (with ``--sparse``, also the
 SuperLU instead of the dense LAPACK factorisation), the shares by class of contact, and one
 row per rule. Run from the repository root:
 
-    python bench/localization_rules.py folder/*.npz
-    python bench/localization_rules.py folder/*.npz --thresholds 0.5 --sparse
+    python studies/localization_rules.py folder/*.npz
+    python studies/localization_rules.py folder/*.npz --thresholds 0.5 --sparse
 """
 
 from __future__ import annotations

@@ -2,9 +2,9 @@
 
 Prints one row per LP and a summary. Run from the repository root:
 
-    python bench/wandering.py                          # our LS, N = 1024, d = 3, p = 1e5, seed 2
-    python bench/wandering.py --seed 1 --pressure 1e12
-    python bench/wandering.py --input ../shared/data/mono_N1000_fba1e-3_then_ls1e-2_seed11
+    python studies/wandering.py                          # our LS, N = 1024, d = 3, p = 1e5, seed 2
+    python studies/wandering.py --seed 1 --pressure 1e12
+    python studies/wandering.py --input ../shared/data/mono_N1000_fba1e-3_then_ls1e-2_seed11
 
 Columns (lengths in mean diameters):
 - `max|s|/b`: the largest displacement of a stable particle over the LP's step bound b.
@@ -36,7 +36,6 @@ from calippso.lp import build_lp, select_pairs
 from calippso.neighbors import NeighborSearch, minimum_image
 from calippso.settings import JamSettings
 from calippso.solvers.highs import solve
-from jam import ls_input
 
 ALPHAS = (1.0, 1.5, 2.0)
 COLD_OVER_MEDIAN = 4.0
@@ -92,6 +91,17 @@ def second_order_correction(snapshots: list, box: np.ndarray, n: int, d: int) ->
     return (f"second-order correction: the corrected step overlaps in {overlaps} of {count} "
             f"LPs{depth}; it differs from the LP's step by up to {max(jumps):.2f} of the "
             f"bound (median {np.median(jumps):.2f})")
+
+
+def ls_input(d: int, n: int, pressure: float, seed: int) -> calippso.Packing:
+    """LS from random points to reduced pressure `pressure` (monodisperse; bidisperse 1.4 in
+    d = 2), the input of `python bench/jam.py --ls d:n --pressure P --seeds K`."""
+    import generators
+
+    sizes = (generators.diameters.bidisperse(n, 1.4, 0.5, seed=seed) if d == 2
+             else generators.diameters.monodisperse(n))
+    return generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
+                                             seed=seed).packing
 
 
 def main() -> None:

@@ -21,10 +21,10 @@ power law, with the cut-off model, and with model "auto" (the likelihood-ratio c
 table gives mean − θ and the standard deviation of θ over the samples, and how often "auto"
 chose the cut-off. Run from the repository root:
 
-    python bench/fit_models.py                        # θ = 0.42311, 102 000 and 20 400 values
-    python bench/fit_models.py --theta 0.17 --sizes 20000 --repeats 50
-    python bench/fit_models.py --gaps --sizes 49000 --repeats 40
-    python bench/fit_models.py --coverage 200 --densities gamma --sizes 100000 --tops 0.3 \
+    python studies/fit_models.py                        # θ = 0.42311, 102 000 and 20 400 values
+    python studies/fit_models.py --theta 0.17 --sizes 20000 --repeats 50
+    python studies/fit_models.py --gaps --sizes 49000 --repeats 40
+    python studies/fit_models.py --coverage 200 --densities gamma --sizes 100000 --tops 0.3 \
         --repeats 40
 
 With ``--coverage K`` each sample is instead fitted with the cut-off model and K bootstrap
