@@ -96,8 +96,8 @@ class GrowingSpheres:
     def _adapt_skin(self, collisions: int, rebuilds: int) -> None:
         """Trade list rebuilds (O(N) each) against list length (work per collision).
 
-        Measured: a rebuild costs about as much as N/2 collisions, and a thicker skin slows
-        every collision; the skin grows (×1.25, up to 0.5 σ) while fewer than N collisions
+        A rebuild costs about as much as N/2 collisions, and a thicker skin slows every
+        collision; the skin grows (×1.25, up to 0.5 σ) while fewer than N collisions
         separate two rebuilds and shrinks (÷1.25, down to 0.05 σ) above 4 N. The dynamics do
         not depend on the skin, only the cost does.
         """

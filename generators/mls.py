@@ -38,9 +38,7 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
     4. if p stays below `max_pressure` for `max_windows_per_rate` growth windows at one rate,
        the pressure has levelled off: the packing rearranges as fast as it grows. Lower the
        rate as in 3 (no equilibration is needed); at the final rate, stop with a status
-       that says so. The published protocol (steps 1–3) does not end in this case: one FB
-       start (N = 1000, seed 2) grew for 22,000 windows at rate 3e-4 with p between 6e11
-       and 9.8e11, φ creeping up by 1e-10 per window.
+       that says so. The published protocol (steps 1–3) does not end in this case.
 
     Parameters
     ----------

@@ -17,14 +17,10 @@ f the two kinds add up, P(f) ≈ P_ℓ(f) + P_e(f), so θ = min(θ_ℓ, θ_e) = 
 rule.
 
 Upper ends of the fit windows (`UPPER`): h ≤ 1e-2 for gaps, f ≤ 0.3 (mean force 1) for
-forces. The gap top was chosen from the local slopes of the cumulative of pooled d = 3
-packings (N = 1024): steady (0.65–0.67 per decade) from 1e-5 to 1e-2, dropping above it. The
-force top comes from synthetic samples (`bench/fit_models.py`): for densities of mean 1 that
-are power laws only as f → 0, with a first- or second-order correction, the model chosen by
-the likelihood-ratio test (`calippso.analysis.fits`, model "auto") over f ≤ 0.3 is within
-0.026 of the exponent, while over f ≤ 0.1 the test seldom detects the correction and the
-estimate is biased by up to 0.08 (the pure power law over f ≤ 0.1, the former default, up to
-0.11; over f ≤ 1 the cut-off model itself is biased by 0.1–0.18).
+forces. Below the gap top the local slope of the pooled d = 3 gap cumulative is steady; at
+the force top the model chosen by the likelihood-ratio test (`calippso.analysis.fits`, model
+"auto") recovers the exponent of synthetic force samples with a first- or second-order
+correction (docs/notes/fit-models.md).
 
 Models (`MODEL`, `calippso.analysis.fits`): the forces are fitted with model "auto", a pure
 power law unless the likelihood-ratio test rejects it for a power law with exponential
@@ -33,10 +29,8 @@ cut-off absorbs a correction at the top of the window, of order x / (scale of th
 distribution): for forces the window top 0.3 is a third of the mean force, for gaps the top
 1e-2 lies a decade below h ≈ 0.1, where the regular part of the gap distribution takes over.
 At the bottom of the window the deviation is a finite-size depletion of the smallest values,
-which the cut-off model cannot absorb: on synthetic gaps h^−γ depleted below h₀ (window from
-the 10th smallest value to 1e-2, 49 000 values; `bench/fit_models.py --gaps`), the pure power
-law is off by −0.033 (h₀ = 1e-5) and −0.103 (1e-4), the test picks the cut-off every time and
-that doubles the bias (−0.064, −0.191).
+which the cut-off model cannot absorb: on depleted synthetic gaps the test picks the cut-off
+and that doubles the bias (docs/notes/fit-models.md).
 """
 
 from __future__ import annotations

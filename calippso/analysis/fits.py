@@ -27,9 +27,8 @@ top of the window.
 Model: pure power law, or power law with an exponential cut-off
 ----------------------------------------------------------------
 A density that is a power law only asymptotically, p(x) ∝ x^(α−1) (1 − λ x + …), gives a pure
-power-law fit whose slope drifts with the window top: for a gamma density
-x^(α−1) e^(−α x) (mean 1, α = 1.42311) the pure fit over x ≤ 0.1 returns α − 0.053 and over
-x ≤ 0.3 α − 0.141 (`bench/fit_models.py`). ``model="cutoff"`` fits the density
+power-law fit whose slope drifts with the window top (docs/notes/fit-models.md).
+``model="cutoff"`` fits the density
 x^(α−1) e^(−λ x) on [a, b] instead, with α and λ both free (λ of either sign): the power law
 with exponential cut-off of Clauset, Shalizi & Newman (their section 5), which absorbs the
 first-order correction, so that α is the exponent of the x → 0 limit. Its likelihood is that
@@ -74,12 +73,8 @@ MIN_GROUPS_FOR_PACKING_BOOTSTRAP = 8
 MIN_POINTS = 10
 #: Fewest points in a fit window for an exponent to be read as a measurement; with fewer
 #: the fit is still made but flagged (`calippso.analysis.exponents.Exponent.warning`).
-#: Measured on synthetic power-law samples over two decades (window [3e-3, 0.3], 300
-#: samples per size) with the slopes of γ, θ_ℓ and θ_e: with model "auto" (the default for
-#: the forces) the fitted exponent spreads between samples by 0.14–0.28 (standard
-#: deviation) with 100 values, 0.10–0.19 with 200 and 0.06–0.12 with 400. Below 400 the
-#: spread of θ_e and θ_ℓ exceeds half the gap between their reference values (0.25), so a
-#: single fit cannot tell the two apart.
+#: Below 400 points the spread of a fitted exponent between samples exceeds half the gap
+#: between the θ_e and θ_ℓ references (docs/analysis.md, Reports).
 MIN_RELIABLE_POINTS = 400
 #: Estimators accepted by `fit_cumulative_power_law`.
 FIT_METHODS = ("mle", "lsq")

@@ -35,7 +35,7 @@ __all__ = ["FACTORIZATIONS", "OpeningResponse", "opening_response"]
 _BATCH = 256
 #: With factorization="auto", up to this many unknowns (d N_s + 1) the system is factorised
 #: densely with LAPACK (at most 290 MB), which is faster than SuperLU at these sizes and alone
-#: detects a near-singular system (`bench/localization_rules.py --sparse` times both).
+#: detects a near-singular system (`studies/localization_rules.py --sparse` times both).
 _DENSE_LIMIT = 6000
 #: Values of `opening_response(factorization=...)`.
 FACTORIZATIONS = ("auto", "dense", "sparse")

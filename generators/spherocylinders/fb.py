@@ -19,15 +19,13 @@ By default ε_r is not one number for all aspect ratios but the rigid-body value
 about a diameter): the turn is then what the same mobility ε / d_i that moves the centre gives
 a rigid rod under the torques λ_ij u_i × F_ij, so that translations and rotations relax
 overlaps at matched rates for every γ (a contact at the tip of a slender rod moves 3 times as
-far by the turn as by the translation). A fixed ε_r (the former default 0.02) makes rotations
-γ-dependently too slow: 12× slower than the rigid-body value at γ = 0.4, 15× at γ = 2, 5× at
-γ = 10 (docs/spherocylinders.md).
+far by the turn as by the translation). A fixed ε_r such as Bargiel's 0.02 turns rods more
+slowly than the rigid-body value by a factor that depends on γ (docs/notes/spherocylinder-density.md).
 
 The start is Poisson centres with random axes at the nominal density η₀ = min(1.2, 12/γ)
 (lower only when N is too small for the box rule). For long rods the start sets the result:
 the rods first relax while they overlap many neighbours, and a denser start packs them denser
-(γ = 10: φ γ = 3.45 from the former start 1.2 × 4.5/γ = 0.54, 4.36 from 1.2; γ = 20: 4.25
-from 0.6, 6.47 from 1.2). Holding η₀ γ fixed beyond γ = 10 holds the number of rods each rod
+(docs/spherocylinders.md, "The start"). Holding η₀ γ fixed beyond γ = 10 holds the number of rods each rod
 overlaps at the start fixed (the random-contact scaling φ γ ≈ const of long rods), and with
 it φ γ of the packing.
 
@@ -65,14 +63,13 @@ SKIN = 0.3
 BRUTE_FORCE_SKIN = 1.5
 #: Bisection steps for the inner scale of one pair (relative precision 2^-40 of the bracket).
 BISECTION_STEPS = 40
-#: Default nominal density of the start for spheres and rods up to γ = 10. For long rods the
-#: start sets the final density (γ = 10, N = 2000, τ = 1e-4: φ γ = 3.45, 4.36, 4.89 from
-#: η₀ = 0.54, 1.2, 1.5; docs/spherocylinders.md); for spheres and short rods it hardly matters.
+#: Default nominal density of the start for spheres and rods up to γ = 10: at γ = 10 it gives
+#: Bargiel's φ γ ≈ 4.5 (for spheres and short rods the start hardly matters).
 INITIAL_DENSITY = 1.2
-#: η₀ γ of the default start beyond γ = 10 (η₀ = 12/γ): a start at 1.2 gave φ γ = 6.47 at
-#: γ = 20 (N = 5500), one at 12/γ = 0.6 gave 4.25, against 4.36 at γ = 10 from 1.2.
+#: η₀ γ of the default start beyond γ = 10 (η₀ = 12/γ): the γ = 10 start carried over, so that
+#: every long rod starts with as many overlapping neighbours.
 LONG_ROD_START = 12.0
-#: A start must lie this factor above `estimated_density` (the former default start).
+#: A start must lie this factor above `estimated_density` (PackingGeneration's start rule).
 MIN_START = 1.2
 
 
