@@ -34,13 +34,15 @@ import numpy as np
 import scipy.sparse as sp
 
 import calippso
-import calippso.ilp
 from calippso.lp import LinearProgram
+from calippso.solvers import Basis, LPAttempt
+from calippso.solvers.clarabel import ClarabelOptions
 from calippso.solvers.conic_form import conic_form
-from calippso.solvers.base import Basis
-from calippso.solvers.highs import _mapped_basis, _model
+from calippso.solvers.highs import HighsOptions, _mapped_basis, _model
 
-TOLERANCES = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+#: HiGHS's tolerances as the loop sets them (`HighsOptions` defaults).
+TOLERANCES = {"primal_feasibility_tolerance": HighsOptions().feasibility_tolerance,
+              "dual_feasibility_tolerance": HighsOptions().feasibility_tolerance}
 
 HIGHS_VARIANTS = {
     "HiGHS IPX + crossover": {"solver": "ipx", "run_crossover": "on",
@@ -82,33 +84,28 @@ def morton_order(packing: calippso.Packing) -> np.ndarray:
 
 
 class _Captured(Exception):
-    """Raised inside `jam` once the wanted LP is built, so that it is not solved there."""
+    """Raised by the `jam` hook once the wanted LP is seen, to end that run there."""
 
 
 def capture_lp(start: calippso.Packing, index: int) -> tuple[LinearProgram, Basis | None]:
-    """The LP number `index` (0-based) of `jam` on `start` (LPs before it are solved), with
-    the warm-start basis the loop offers it (None when the loop solves it cold)."""
-    captured: list[tuple[LinearProgram, Basis | None]] = []
-    real = calippso.ilp.get_solver
+    """The LP number `index` (0-based) of `jam` on `start`, with the warm-start basis the loop
+    offers it (None when the loop solves it cold): the first backend call of that LP, as
+    ``jam(..., on_lp=...)`` reports it."""
+    captured: list[LPAttempt] = []
 
-    def recording(name):
-        solve = real(name)
+    def record(attempt: LPAttempt) -> None:
+        if attempt.lp_number == index + 1:
+            captured.append(attempt)
+            raise _Captured
 
-        def wrapper(lp, settings, warm_start=None):
-            captured.append((lp, warm_start))
-            if len(captured) > index:
-                raise _Captured
-            return solve(lp, settings, warm_start=warm_start)
-        return wrapper
-
-    calippso.ilp.get_solver = recording
     try:
-        calippso.jam(start, max_iters=index + 1, newton=False, fallback_solvers=())
+        calippso.jam(start, max_iters=index + 1, newton=False, network_first="off",
+                     fallback_solvers=(), on_lp=record)
     except _Captured:
         pass
-    finally:
-        calippso.ilp.get_solver = real
-    return captured[index]
+    if not captured:
+        raise SystemExit(f"the run ended before LP {index}: pick a smaller --lp")
+    return captured[0].lp, captured[0].warm_start
 
 
 def time_highs(lp: LinearProgram, options: dict,
@@ -169,7 +166,7 @@ def time_clarabel(lp: LinearProgram, method: str,
     options = clarabel.DefaultSettings()
     options.verbose = False
     options.direct_solve_method = method
-    options.tol_gap_abs = options.tol_gap_rel = options.tol_feas = 1e-11
+    options.tol_gap_abs = options.tol_gap_rel = options.tol_feas = ClarabelOptions().tolerance
     size = cost.shape[0]
     start = time.perf_counter()
     solver = clarabel.DefaultSolver(sp.csc_matrix((size, size)), cost, matrix, form.rhs, [clarabel.NonnegativeConeT(form.rhs.shape[0])],

@@ -24,6 +24,7 @@ import click
 
 from .ensemble import DISTRIBUTIONS, PROTOCOLS, make_diameters
 from .settings import INTERIOR_POINT_SOLVERS, NETWORK_FIRST_MODES
+from .solvers import backend_names
 
 if TYPE_CHECKING:
     import numpy as np
@@ -661,7 +662,7 @@ def _jam_record(result, source, output: Path | None) -> dict:
 @output_path()
 @click.option(
     "--solver",
-    type=click.Choice(["highs", "clarabel", "cvxpy"]),
+    type=click.Choice(backend_names()),
     default="highs",
     show_default=True,
     help="LP backend.",
@@ -917,7 +918,7 @@ def convert(source, target, out):
 )
 @click.option(
     "--solver",
-    type=click.Choice(["highs", "clarabel", "cvxpy"]),
+    type=click.Choice(backend_names()),
     default="highs",
     show_default=True,
     help="LP backend.",

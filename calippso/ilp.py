@@ -35,7 +35,8 @@ from .precompress import precompress, precompress_checkpoint
 from .rattlers import separate_rattlers
 from .result import JammingResult, history_from_records
 from .settings import JamSettings
-from .solvers import Basis, LPSolution, get_solver
+from .solvers import Basis, LPSolution
+from .solvers.policy import COLD_RESOLVE, FIRST, LPAttempt, attempt_plan, prepare_backends
 
 __all__ = ["jam", "initial_step_bound", "next_step_bound"]
 
@@ -71,7 +72,7 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         tol_s: float = 1e-9, max_iters: int = 1000, verbose: bool = False,
         callback: Callable[[dict], bool | None] | None = None,
         checkpoint: str | os.PathLike | None = None, network=None,
-        **options) -> JammingResult:
+        on_lp: Callable[[LPAttempt], None] | None = None, **options) -> JammingResult:
     """Bring a configuration of hard (hyper)spheres to its jamming point with CALiPPSO.
 
     Parameters
@@ -82,9 +83,10 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         Diameters, when `packing` is an array of positions.
     box : array_like, shape (d,) or float, optional
         Box side lengths, when `packing` is an array of positions.
-    solver : {"highs", "clarabel", "cvxpy"}
+    solver : {"highs", "clarabel", "cvxpy"} or str
         LP backend. "highs" (interior point + crossover) gives vertex solutions whose duals
         identify contacts exactly; the others are interior-point solvers at tight tolerances.
+        A backend added with `calippso.solvers.register_backend` is accepted by its name.
     tol_gamma : float
         Converged when √Γ − 1 < tol_gamma ...
     tol_s : float
@@ -107,6 +109,13 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         soft-sphere quench): pairs of particle indices. It is tried first by the
         network-first stage (``network_first``) and used only if the Newton certificate
         proves its jamming point.
+    on_lp : callable, optional
+        Called after every backend call of the run (each LP, its retries and fallbacks, the
+        cold re-solves and the force clean-up LP) with a `calippso.solvers.LPAttempt`: the LP
+        number, the role of the call, the backend's name, the `LinearProgram`, the basis
+        offered as warm start, the `LPSolution` (None if the backend failed) and why the loop
+        refused it (None if accepted). Its return value is ignored; an exception it raises
+        ends the run and reaches the caller unchanged. For benchmarks and diagnostics.
     **options
         Further `JamSettings` fields (e.g. ``network_first``, ``initial_step``,
         ``max_step``, ``contact_threshold``, ``feasibility_tolerance``). ``precompress_pressure=1e5``
@@ -122,7 +131,8 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     ValueError
         Bad input: wrong shapes, NaN, non-positive sizes, a particle wider than half the box,
         overlapping particles (beyond round-off, `overlap_tolerance`), too few particles to
-        jam (fewer than 2 d + 1), or a malformed ``network``.
+        jam (fewer than 2 d + 1), a malformed ``network``, or a backend that is not
+        registered (``solver``, ``fallback_solvers``) or cannot run here.
     JammingError
         Every backend failed on an LP (the exception keeps the last valid configuration),
         or ``network_first="require"`` and no guessed network was certified.
@@ -143,7 +153,7 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
                                     precompress_checkpoint(checkpoint))
         notes.append(note)
     return _Jammer(packing, settings, callback, checkpoint, start=start, notes=notes,
-                   hint=hint).run()
+                   hint=hint, on_lp=on_lp).run()
 
 
 def _as_packing(packing, diameters, box) -> Packing:
@@ -368,8 +378,10 @@ class _Jammer:
 
     def __init__(self, packing: Packing, settings: JamSettings, callback,
                  checkpoint: str | os.PathLike | None = None, start: float | None = None,
-                 notes: list[str] | None = None, hint: np.ndarray | None = None):
+                 notes: list[str] | None = None, hint: np.ndarray | None = None,
+                 on_lp: Callable[[LPAttempt], None] | None = None):
         self.settings = settings
+        self.on_lp = on_lp
         self.hint = hint
         self.callback = callback
         self.start = time.perf_counter() if start is None else start
@@ -383,11 +395,7 @@ class _Jammer:
             self.fixed[0] = True
         self.records: list[dict] = []
         self.notes: list[str] = list(notes or [])
-        self.solver_name = settings.solver
-        if (settings.interior_point == "hipo"   # every HiGHS build has IPX; "auto" adapts
-                and "highs" in (settings.solver, *settings.fallback_solvers)):
-            from .solvers.highs import check_interior_point
-            check_interior_point(settings.interior_point)
+        self.backends = prepare_backends(settings)
         self.failed_networks: set[str] = set()
         self.newton_failure = ""          # why the last Newton stage was not certified
         self.discarded_seconds = 0.0      # solver time of attempts whose LP was not taken
@@ -457,39 +465,52 @@ class _Jammer:
                stable: np.ndarray | None = None,
                forced: np.ndarray = np.zeros((0, 2), dtype=np.int64)) -> _Step:
         """Build and solve one LP; on failure retry with a smaller bound, then other backends
-        (each at the full bound, then at a quarter of it)."""
-        attempts = [(self.solver_name, step), (self.solver_name, step / 4)]
-        attempts += [(name, bound) for name in self.settings.fallback_solvers
-                     if name != self.solver_name for bound in (step, step / 4)]
+        (`calippso.solvers.policy.attempt_plan`)."""
         failures = []
         warm_start = self.basis if self.settings.warm_start else None
-        for name, bound in attempts:
+        for attempt in attempt_plan(self.settings.solver, self.settings.fallback_solvers, step):
+            bound = attempt.bound
             lp = build_lp(self._pairs(search, bound, stable, forced), self.n, self.d, bound, fixed)
-            began = time.perf_counter()
-            try:
-                solution = get_solver(name)(lp, self.settings, warm_start=warm_start)
-            except (SolverError, ValueError, RuntimeError, MemoryError) as error:
-                self.discarded_seconds += time.perf_counter() - began
-                failures.append(f"{name} (bound {bound:.1e}): {type(error).__name__}: {error}")
-                warm_start = None
-                continue
-            problem = _solution_problem(lp, solution)
-            if problem is None:
-                if (name, bound) != attempts[0]:
+            solution, failure = self._call_backend(attempt.backend, lp, warm_start, attempt.role)
+            if failure is None:
+                if attempt.role != FIRST:
                     if not self.retried_lps:
-                        self.notes.append(f"LP {self.lps_solved + 1} needed a retry ({name}, "
-                                          f"bound {bound:.1e}) after: {'; '.join(failures)}")
+                        self.notes.append(f"LP {self.lps_solved + 1} needed a retry "
+                                          f"({attempt.backend}, bound {bound:.1e}) after: "
+                                          f"{'; '.join(failures)}")
                     self.retried_lps += 1
                 taken = self._analyse(lp, solution, stable)
                 if taken.needs_cold_resolve:
-                    taken = self._cold_resolve(name, lp, taken, stable)
+                    taken = self._cold_resolve(attempt.backend, lp, taken, stable)
                 taken.offered_warm_start = warm_start is not None
                 return taken
-            failures.append(f"{name} (bound {bound:.1e}): {problem}")
-            self.discarded_seconds += solution.seconds
+            failures.append(f"{attempt.backend} (bound {bound:.1e}): {failure}")
             warm_start = None   # retries start from scratch
         raise self._fail(f"every LP backend failed at LP {self.lps_solved + 1}: "
                          + "; ".join(failures))
+
+    def _call_backend(self, name: str, lp: LinearProgram, warm_start: Basis | None,
+                      role: str) -> tuple[LPSolution | None, str | None]:
+        """One backend call: its solution and None, or what failed (the backend's
+        `SolverError`, or the check its solution failed).
+
+        Only `SolverError` is caught: any other exception is a bug and ends the run. The time
+        of a refused call is added to the next history record; ``on_lp`` sees every call.
+        """
+        began = time.perf_counter()
+        try:
+            solution = self.backends[name].solve(lp, warm_start)
+        except SolverError as error:
+            solution, failure = None, f"{type(error).__name__}: {error}"
+            self.discarded_seconds += time.perf_counter() - began
+        else:
+            failure = _solution_problem(lp, solution)
+            if failure is not None:
+                self.discarded_seconds += solution.seconds
+        if self.on_lp is not None:
+            self.on_lp(LPAttempt(self.lps_solved + 1, role, name, lp, warm_start, solution,
+                                 failure))
+        return solution, failure
 
     def _cold_resolve(self, name: str, lp: LinearProgram, taken: _Step,
                       stable: np.ndarray | None) -> _Step:
@@ -498,16 +519,10 @@ class _Jammer:
         At a degenerate optimum (crystalline patches, nearly redundant contacts) the simplex
         from an old basis can end at a vertex whose duals leave out contacts; interior point +
         crossover ends near the centre of the optimal face and keeps them. Keeps the warm
-        solution if the cold one fails its checks. Called only when `_Step.needs_cold_resolve`.
+        solution if the cold one fails. Called only when `_Step.needs_cold_resolve`.
         """
-        began = time.perf_counter()
-        try:
-            cold = get_solver(name)(lp, self.settings, warm_start=None)
-        except (SolverError, ValueError, RuntimeError, MemoryError):
-            self.discarded_seconds += time.perf_counter() - began
-            return taken
-        if _solution_problem(lp, cold) is not None:
-            self.discarded_seconds += cold.seconds
+        cold, failure = self._call_backend(name, lp, None, COLD_RESOLVE)
+        if failure is not None:
             return taken
         return self._analyse(lp, replace(cold, seconds=cold.seconds + taken.solution.seconds),
                              stable)

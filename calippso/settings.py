@@ -5,12 +5,12 @@ All lengths are in units of the mean diameter of the input packing.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, fields, replace
 
-__all__ = ["JamSettings", "SOLVERS"]
+from .solvers.registry import backend_names, check_backend_name
 
-#: Names accepted by ``jam(..., solver=...)``.
-SOLVERS = ("highs", "clarabel", "cvxpy")
+__all__ = ["JamSettings"]
 
 #: Values accepted by ``jam(..., network_first=...)``.
 NETWORK_FIRST_MODES = ("auto", "off", "require")
@@ -26,9 +26,11 @@ class JamSettings:
     Attributes
     ----------
     solver : str
-        LP backend: "highs" (interior point + crossover, default), "clarabel" or "cvxpy".
+        LP backend: "highs" (interior point + crossover, default), "clarabel", "cvxpy", or
+        any backend added with `calippso.solvers.register_backend`.
     fallback_solvers : tuple of str
-        Backends tried, in order, when the chosen one fails twice on the same LP.
+        Backends tried, in order, when the chosen one fails twice on the same LP (a list is
+        stored as a tuple). Every name must be a registered backend.
     tol_gamma : float
         Convergence when √Γ − 1 < tol_gamma.
     tol_s : float
@@ -120,8 +122,13 @@ class JamSettings:
     verbose: bool = False
 
     def __post_init__(self) -> None:
-        if self.solver not in SOLVERS:
-            raise ValueError(f"unknown solver {self.solver!r}: choose one of {', '.join(SOLVERS)}")
+        check_backend_name(self.solver, "solver")
+        if isinstance(self.fallback_solvers, str):
+            raise TypeError(f"fallback_solvers must be a sequence of backend names, not the "
+                            f"string {self.fallback_solvers!r}")
+        object.__setattr__(self, "fallback_solvers", tuple(self.fallback_solvers))
+        for name in self.fallback_solvers:
+            check_backend_name(name, "fallback solver")
         if self.network_first not in NETWORK_FIRST_MODES:
             raise ValueError(f"unknown network_first {self.network_first!r}: choose one of "
                              f"{', '.join(NETWORK_FIRST_MODES)}")
@@ -157,3 +164,12 @@ class JamSettings:
     def with_changes(self, **changes) -> "JamSettings":
         """A copy with some fields changed."""
         return replace(self, **changes)
+
+
+def __getattr__(name: str):
+    if name == "SOLVERS":
+        warnings.warn("calippso.settings.SOLVERS is deprecated: use "
+                      "calippso.solvers.backend_names(), which also lists the backends added "
+                      "with register_backend", DeprecationWarning, stacklevel=2)
+        return backend_names()
+    raise AttributeError(f"module 'calippso.settings' has no attribute {name!r}")

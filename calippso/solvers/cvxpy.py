@@ -9,10 +9,11 @@ import warnings
 import cvxpy as cp
 import numpy as np
 
+from ..errors import SolverError
 from ..lp import LinearProgram
 from ..settings import JamSettings
-from .base import LPSolution
-from .clarabel import TOLERANCE
+from .base import Basis, LPSolution
+from .clarabel import ClarabelOptions
 
 
 def build_problem(lp: LinearProgram) -> tuple[cp.Problem, cp.Variable, cp.Constraint]:
@@ -28,21 +29,29 @@ def build_problem(lp: LinearProgram) -> tuple[cp.Problem, cp.Variable, cp.Constr
     return cp.Problem(cp.Maximize(x[-1]), constraints), x, pairs
 
 
-def solve(lp: LinearProgram, settings: JamSettings, warm_start=None) -> LPSolution:
-    """Build the cvxpy problem and solve it with Clarabel at tight tolerances. `warm_start` is
-    accepted for a uniform interface and ignored (interior point has no basis to reuse)."""
+def solve(lp: LinearProgram, options: ClarabelOptions, warm_start: Basis | None = None
+          ) -> LPSolution:
+    """Build the cvxpy problem and solve it with Clarabel at the tolerances of `options`.
+    `warm_start` is accepted for a uniform interface and ignored (interior point has no basis
+    to reuse).
+
+    Raises
+    ------
+    SolverError
+        If cvxpy reports a solver error.
+    """
     start = time.perf_counter()
     problem, x, pairs = build_problem(lp)
     try:
         with warnings.catch_warnings():
             # "Solution may be inaccurate": the loop checks every solution itself.
             warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=cp.CLARABEL, tol_gap_abs=TOLERANCE, tol_gap_rel=TOLERANCE,
-                          tol_feas=TOLERANCE, tol_ktratio=1e-9, direct_solve_method="faer")
+            problem.solve(solver=cp.CLARABEL, tol_gap_abs=options.tolerance,
+                          tol_gap_rel=options.tolerance, tol_feas=options.tolerance,
+                          tol_ktratio=options.ktratio_tolerance,
+                          direct_solve_method=options.direct_solve_method)
     except cp.error.SolverError as error:
-        return LPSolution(x=np.full(lp.n_cols, np.nan), duals=np.full(lp.n_rows, np.nan),
-                          optimal=False, status=f"solver error: {error}",
-                          seconds=time.perf_counter() - start, vertex=False, solver="cvxpy")
+        raise SolverError(f"cvxpy: {error}") from error
     optimal = problem.status in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE)
     full = np.zeros(lp.n_cols)
     if optimal:
@@ -53,3 +62,24 @@ def solve(lp: LinearProgram, settings: JamSettings, warm_start=None) -> LPSoluti
         duals = np.full(lp.n_rows, np.nan)
     return LPSolution(x=full, duals=duals, optimal=optimal, status=str(problem.status),
                       seconds=time.perf_counter() - start, vertex=False, solver="cvxpy")
+
+
+class CvxpyBackend:
+    """The "cvxpy" backend (see `Backend`); its options are Clarabel's."""
+
+    name = "cvxpy"
+    options_type = ClarabelOptions
+
+    def options(self, settings: JamSettings) -> ClarabelOptions:
+        return ClarabelOptions.from_settings(settings)
+
+    def validate(self, options: ClarabelOptions) -> None:
+        """Nothing to check: cvxpy ships with Clarabel."""
+
+    def solve(self, lp: LinearProgram, options: ClarabelOptions,
+              warm_start: Basis | None = None) -> LPSolution:
+        return solve(lp, options, warm_start)
+
+
+#: The registered instance (`calippso.solvers.registry`).
+BACKEND = CvxpyBackend()

@@ -9,20 +9,17 @@ import functools
 import os
 import sys
 import time
+from dataclasses import dataclass
 from importlib.metadata import version
 
 import highspy
 import numpy as np
 
+from ..errors import SolverError
 from ..lp import LinearProgram
 from ..settings import JamSettings
 from .base import Basis, LPSolution
 
-#: A warm-started primal simplex gives up after this many iterations per LP row (then
-#: interior point + crossover solves the LP); measured at N = 1024, d = 3, one interior-point
-#: solve costs about as much as 0.3 simplex iterations per row.
-WARM_ITERATIONS_PER_ROW = 0.25
-MIN_WARM_ITERATIONS = 200
 #: With ``interior_point="auto"``, LPs with this many columns (d N + 1) or more are solved from
 #: scratch by HiPO where it is installed: N ≥ 2048 in d = 3, N ≥ 1024 in d = 5, where whole
 #: runs took about half as long with HiPO (docs/jamming.md, Backends). Smaller problems keep
@@ -31,10 +28,48 @@ MIN_WARM_ITERATIONS = 200
 #: columns, fixed for a run, and not on the rows, which grow and shrink with the step bound.
 HIPO_MIN_COLUMNS = 5000
 
+
+@dataclass(frozen=True)
+class HighsOptions:
+    """Options of the HiGHS backend.
+
+    Attributes
+    ----------
+    feasibility_tolerance : float
+        HiGHS's primal and dual feasibility tolerances (rows are in mean diameters);
+        ``JamSettings.feasibility_tolerance``.
+    interior_point : {"auto", "ipx", "hipo"}
+        The interior point of the LPs solved from scratch; ``JamSettings.interior_point``
+        ("auto": `interior_point_for`).
+    ipm_optimality_tolerance : float
+        Relative duality gap at which the interior point hands over to the crossover.
+    warm_iterations_per_row : float
+        A warm-started primal simplex gives up after this many iterations per LP row (then
+        interior point + crossover solves the LP); measured at N = 1024, d = 3, one
+        interior-point solve costs about as much as 0.3 simplex iterations per row.
+    min_warm_iterations : int
+        ... but never after fewer than this many iterations.
+    """
+
+    feasibility_tolerance: float = 1e-10
+    interior_point: str = "auto"
+    ipm_optimality_tolerance: float = 1e-12
+    warm_iterations_per_row: float = 0.25
+    min_warm_iterations: int = 200
+
+    @classmethod
+    def from_settings(cls, settings: JamSettings) -> "HighsOptions":
+        """The options a run with `settings` uses (the other fields keep their defaults)."""
+        return cls(feasibility_tolerance=settings.feasibility_tolerance,
+                   interior_point=settings.interior_point)
+
+
 _STATUS = {int(v): v for v in (highspy.HighsBasisStatus.kLower, highspy.HighsBasisStatus.kBasic,
                                highspy.HighsBasisStatus.kUpper, highspy.HighsBasisStatus.kZero,
                                highspy.HighsBasisStatus.kNonbasic)}
 _BASIC = int(highspy.HighsBasisStatus.kBasic)
+#: HiGHS's ``simplex_strategy`` value for primal simplex.
+_PRIMAL_SIMPLEX = 4
 
 
 _banner_silenced = False
@@ -192,7 +227,7 @@ def _solution(highs: highspy.Highs, lp: LinearProgram, start: float,
                       solver="highs", basis=basis, warm_started=warm_started)
 
 
-def solve(lp: LinearProgram, settings: JamSettings, warm_start: Basis | None = None
+def solve(lp: LinearProgram, options: HighsOptions, warm_start: Basis | None = None
           ) -> LPSolution:
     """Solve with HiGHS at tight tolerances, returning a vertex solution.
 
@@ -200,27 +235,59 @@ def solve(lp: LinearProgram, settings: JamSettings, warm_start: Basis | None = N
     starts from that basis mapped onto this LP's rows; consecutive LPs of the loop differ
     little, so this takes a few hundred simplex iterations where interior point + crossover
     costs several times more. If the basis does not fit, or the simplex needs more than
-    `WARM_ITERATIONS_PER_ROW` iterations per row, the LP is solved from scratch by interior
-    point + crossover.
+    ``options.warm_iterations_per_row`` iterations per row, the LP is solved from scratch by
+    interior point + crossover.
+
+    Raises
+    ------
+    SolverError
+        If HiGHS raised (out of memory, an internal error).
     """
     start = time.perf_counter()
-    highs = _quiet_highs()
-    highs.setOptionValue("primal_feasibility_tolerance", settings.feasibility_tolerance)
-    highs.setOptionValue("dual_feasibility_tolerance", settings.feasibility_tolerance)
-    highs.passModel(_model(lp))
-    basis = _mapped_basis(warm_start, lp) if warm_start is not None else None
-    if basis is not None and highs.setBasis(basis) == highspy.HighsStatus.kOk:
-        highs.setOptionValue("solver", "simplex")
-        highs.setOptionValue("simplex_strategy", 4)   # primal
-        highs.setOptionValue("simplex_iteration_limit",
-                             max(MIN_WARM_ITERATIONS, int(WARM_ITERATIONS_PER_ROW * lp.n_rows)))
+    try:
+        highs = _quiet_highs()
+        highs.setOptionValue("primal_feasibility_tolerance", options.feasibility_tolerance)
+        highs.setOptionValue("dual_feasibility_tolerance", options.feasibility_tolerance)
+        highs.passModel(_model(lp))
+        basis = _mapped_basis(warm_start, lp) if warm_start is not None else None
+        if basis is not None and highs.setBasis(basis) == highspy.HighsStatus.kOk:
+            highs.setOptionValue("solver", "simplex")
+            highs.setOptionValue("simplex_strategy", _PRIMAL_SIMPLEX)
+            highs.setOptionValue("simplex_iteration_limit", max(
+                options.min_warm_iterations, int(options.warm_iterations_per_row * lp.n_rows)))
+            highs.run()
+            if highs.getModelStatus() == highspy.HighsModelStatus.kOptimal:
+                return _solution(highs, lp, start, warm_started=True)
+            highs.clearSolver()
+            highs.setOptionValue("simplex_iteration_limit", highspy.kHighsIInf)
+        _set_interior_point(highs, interior_point_for(lp, options.interior_point))
+        highs.setOptionValue("run_crossover", "on")
+        highs.setOptionValue("ipm_optimality_tolerance", options.ipm_optimality_tolerance)
         highs.run()
-        if highs.getModelStatus() == highspy.HighsModelStatus.kOptimal:
-            return _solution(highs, lp, start, warm_started=True)
-        highs.clearSolver()
-        highs.setOptionValue("simplex_iteration_limit", highspy.kHighsIInf)
-    _set_interior_point(highs, interior_point_for(lp, settings.interior_point))
-    highs.setOptionValue("run_crossover", "on")
-    highs.setOptionValue("ipm_optimality_tolerance", 1e-12)
-    highs.run()
+    except (RuntimeError, MemoryError) as error:
+        raise SolverError(f"HiGHS raised {type(error).__name__}: {error}") from error
     return _solution(highs, lp, start, warm_started=False)
+
+
+class HighsBackend:
+    """The "highs" backend (see `Backend`)."""
+
+    name = "highs"
+    options_type = HighsOptions
+
+    def options(self, settings: JamSettings) -> HighsOptions:
+        return HighsOptions.from_settings(settings)
+
+    def validate(self, options: HighsOptions) -> None:
+        """Raise ValueError if ``options.interior_point`` is "hipo" and this HiGHS build lacks
+        it ("auto" takes HiPO only where it is installed; every build has IPX)."""
+        if options.interior_point == "hipo":
+            check_interior_point("hipo")
+
+    def solve(self, lp: LinearProgram, options: HighsOptions,
+              warm_start: Basis | None = None) -> LPSolution:
+        return solve(lp, options, warm_start)
+
+
+#: The registered instance (`calippso.solvers.registry`).
+BACKEND = HighsBackend()
