@@ -1,4 +1,5 @@
-"""Small test configurations built without the generators (so core tests stay independent)."""
+"""Small test configurations, built without the generators (so core tests stay independent),
+except `ls_packing`, which imports them when called."""
 
 from __future__ import annotations
 
@@ -65,3 +66,16 @@ def overlap_free(packing: Packing) -> float:
     gaps = distance / sigma - 1.0
     np.fill_diagonal(gaps, np.inf)
     return float(gaps.min())
+
+
+def ls_packing(n: int, d: int, seed: int, pressure: float = 1e12) -> Packing:
+    """Monodisperse Lubachevsky–Stillinger state at reduced pressure `pressure` (gaps ~ σ/p)."""
+    import generators
+
+    return generators.lubachevsky_stillinger(generators.diameters.monodisperse(n), d=d,
+                                             target_pressure=pressure, seed=seed).packing
+
+
+def phi_j(d: int) -> float:
+    """Typical jamming density of monodisperse spheres (d = 3, 4, 5)."""
+    return {3: 0.64, 4: 0.46, 5: 0.31}[d]

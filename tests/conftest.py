@@ -1,12 +1,58 @@
-"""Shared fixtures: paths to the real input packings in ../shared/data."""
+"""Shared fixtures and the physics every jammed result must satisfy.
+
+`assert_jammed` is the one definition of "jammed" the tests use: no overlap beyond
+`OVERLAP_TOLERANCE` σ, an isostatic network N_c = d (N_s − 1) + 1, force balance within
+`BALANCE_TOLERANCE`, positive forces; all recomputed here from the returned geometry,
+independently of the loop. Input makers live in `configurations.py` and `lattices.py`.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # configurations.py, lattices.py
+
+from calippso.packing import minimum_image  # noqa: E402
+from configurations import overlap_free  # noqa: E402
+
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+#: Largest overlap accepted in a result, relative to σ_ij.
+OVERLAP_TOLERANCE = 1e-12
+#: Largest net force on a stable particle (forces normalised to mean 1).
+BALANCE_TOLERANCE = 1e-12
+#: A contact's relative gap |h| = |r_ij / σ_ij − 1| stays below this.
+CONTACT_GAP_TOLERANCE = 1e-9
+#: Σ λ_ij σ_ij² = 1 (the LP's dual normalisation) to this absolute tolerance.
+NORMALIZATION_TOLERANCE = 1e-10
+
+
+@pytest.fixture
+def replace_backend(monkeypatch):
+    """``replace_backend(backend)`` registers `backend` under its name for the test only (in
+    place of the backend of that name, if any; see `calippso.solvers.register_backend`)."""
+    from calippso.solvers import registry
+
+    def replace(backend) -> None:
+        monkeypatch.setitem(registry._REGISTRY, backend.name, backend)
+
+    return replace
+
+
+@pytest.fixture(scope="session")
+def nearly_jammed():
+    """Case 1 of the extreme matrix: an N = 128, d = 3 LS packing at p = 1e12, its contacts
+    closed to ~1e-12 σ without overlap."""
+    from configurations import ls_packing
+
+    packing = ls_packing(128, 3, seed=1)
+    assert 0 <= overlap_free(packing) < 1e-9
+    return packing
 
 
 @pytest.fixture(scope="session")
@@ -17,6 +63,73 @@ def shared_data() -> Path:
     return SHARED_DATA
 
 
-import sys
+# ----------------------------------------------------------------------------- invariants
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/configurations.py
+def jam_digest(result) -> str:
+    """SHA-256 of everything a jam computes (wall and solver times left out)."""
+    h = hashlib.sha256()
+    for array in (result.packing.positions, result.packing.diameters, result.packing.box,
+                  result.contacts, result.forces, result.rattlers):
+        h.update(np.ascontiguousarray(array).tobytes())
+    history = result.history
+    for name in history.dtype.names:
+        if name not in ("wall_time", "solver_time"):
+            h.update(np.ascontiguousarray(history[name]).tobytes())
+    h.update(repr((result.converged, result.iterations, result.force_balance,
+                   result.dual_normalization)).encode())
+    return h.hexdigest()
+
+
+def net_forces(result) -> np.ndarray:
+    """Net contact force on every particle, recomputed from the returned geometry, (N, d)."""
+    packing = result.packing
+    i, j = result.contacts.T
+    delta = minimum_image(packing.positions[i] - packing.positions[j], packing.box)
+    normals = delta / np.linalg.norm(delta, axis=1)[:, None]
+    net = np.zeros((packing.n, packing.d))
+    np.add.at(net, i, result.forces[:, None] * normals)
+    np.add.at(net, j, -result.forces[:, None] * normals)
+    return net
+
+
+def assert_contacts_touch(result) -> None:
+    """Every contact joins two stable particles (i < j) that touch: |h| < CONTACT_GAP_TOLERANCE."""
+    packing = result.packing
+    i, j = result.contacts.T
+    assert np.all(i < j)
+    assert not result.rattlers[i].any() and not result.rattlers[j].any()
+    delta = minimum_image(packing.positions[i] - packing.positions[j], packing.box)
+    sigma = 0.5 * (packing.diameters[i] + packing.diameters[j])
+    gaps = np.linalg.norm(delta, axis=1) / sigma - 1
+    assert np.max(np.abs(gaps), initial=0.0) < CONTACT_GAP_TOLERANCE
+
+
+def assert_rigid_and_balanced(result) -> None:
+    """Converged, overlap-free (brute force over all pairs), real contacts, positive forces of
+    mean 1 in balance on every particle, Σ λ σ² = 1, every stable particle with ≥ d + 1
+    contacts; isostatic or hyperstatic."""
+    packing = result.packing
+    assert result.converged, result.status
+    assert overlap_free(packing) >= -OVERLAP_TOLERANCE
+    assert_contacts_touch(result)
+    assert np.all(result.forces > 0)
+    assert result.forces.mean() == pytest.approx(1.0, rel=1e-12)
+    assert np.abs(net_forces(result)).max(initial=0.0) <= BALANCE_TOLERANCE
+    assert result.force_balance <= BALANCE_TOLERANCE
+    assert result.dual_normalization == pytest.approx(1.0, abs=NORMALIZATION_TOLERANCE)
+    counts = np.bincount(result.contacts.ravel(), minlength=packing.n)
+    assert np.all(counts[~result.rattlers] >= packing.d + 1)
+    assert result.isostaticity_gap >= 0, result.status
+    lp_stages = np.isin(result.history["stage"], ["lp", "cleanup"])
+    assert result.iterations == np.count_nonzero(lp_stages)
+
+
+def assert_jammed(result) -> None:
+    """A jammed, isostatic packing: `assert_rigid_and_balanced` and N_c = d (N_s − 1) + 1
+    with more than d + 1 stable particles."""
+    assert_rigid_and_balanced(result)
+    packing = result.packing
+    n_stable = int(np.count_nonzero(~result.rattlers))
+    assert n_stable > packing.d + 1, result.status
+    assert result.n_contacts == packing.d * (n_stable - 1) + 1, result.status
+    assert result.isostatic and result.isostaticity_gap == 0

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from configurations import random_sequential_addition
-from test_ilp import assert_jammed
+from conftest import assert_jammed
 
 from calippso import jam
 

@@ -1,5 +1,6 @@
 """Determinism: the same input and seed give the same result bit-for-bit on one machine, for
-`calippso.jam` (every backend) and for the generators, in one process and across processes."""
+`calippso.jam` and for the generators, in one process and across processes (every backend
+in one process: tests/test_backends.py)."""
 
 from __future__ import annotations
 
@@ -18,23 +19,9 @@ from calippso import jam
 from generators import diameters as dist
 
 from configurations import bidisperse, random_sequential_addition
+from conftest import jam_digest
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def jam_digest(result) -> str:
-    """SHA-256 of everything a jam computes (wall and solver times left out)."""
-    h = hashlib.sha256()
-    for array in (result.packing.positions, result.packing.diameters, result.packing.box,
-                  result.contacts, result.forces, result.rattlers):
-        h.update(np.ascontiguousarray(array).tobytes())
-    history = result.history
-    for name in history.dtype.names:
-        if name not in ("wall_time", "solver_time"):
-            h.update(np.ascontiguousarray(history[name]).tobytes())
-    h.update(repr((result.converged, result.iterations, result.force_balance,
-                   result.dual_normalization)).encode())
-    return h.hexdigest()
 
 
 def generation_digest(result) -> str:
@@ -49,16 +36,6 @@ def generation_digest(result) -> str:
 
 def start():
     return random_sequential_addition(64, 2, 0.45, seed=21, diameters=bidisperse(64, 1.4))
-
-
-@pytest.mark.parametrize("solver", ["highs", "clarabel", "cvxpy"])
-def test_jam_is_bit_for_bit_repeatable(solver):
-    first = jam(start(), solver=solver)
-    second = jam(start(), solver=solver)
-    assert first.converged
-    assert jam_digest(first) == jam_digest(second)
-    np.testing.assert_array_equal(first.packing.positions, second.packing.positions)
-    np.testing.assert_array_equal(first.forces, second.forces)
 
 
 GENERATORS = {
@@ -94,7 +71,8 @@ CHILD = textwrap.dedent("""
     import generators
     from calippso import jam
     from generators import diameters as dist
-    from test_determinism import generation_digest, jam_digest, start
+    from conftest import jam_digest
+    from test_determinism import generation_digest, start
     ls = generators.lubachevsky_stillinger(dist.monodisperse(64), d=3, target_pressure=1e6, seed=9)
     print(jam_digest(jam(start())), generation_digest(ls), jam_digest(jam(ls.packing)))
 """)

@@ -3,9 +3,9 @@ error that names the problem.
 
 Cases (numbers as in docs/stability.md): 1 nearly jammed input (LS at p = 1e12), 2 far from
 jamming (φ0 ≈ 0.3 φ_J), 3 wide polydispersity, 4 the 2-d 50:50 mixture, 6 crystals,
-7 round-off and real overlaps, 8 rectangular boxes, tiny N and a caged rattler, 9 every
-backend on 1, 2 and 6. The larger instances (and case 5, a small d = 5 box) are in
-tests/test_extremes_slow.py.
+7 round-off and real overlaps, 8 rectangular boxes, tiny N and a caged rattler. Case 9,
+every backend on 1, 2 and 6, is in tests/test_backends.py; the larger instances (and case 5,
+a small d = 5 box) are in tests/test_extremes_slow.py.
 """
 
 from __future__ import annotations
@@ -14,85 +14,32 @@ import numpy as np
 import pytest
 
 import calippso
-import generators
 from calippso import Packing, jam
 from calippso.neighbors import min_gap
 from calippso.packing import ball_volume, minimum_image
-from generators import diameters as dist
 
 import lattices
-from configurations import bidisperse, lognormal, overlap_free, random_sequential_addition
-
-#: Largest overlap accepted in a result, relative to σ_ij.
-OVERLAP = 1e-12
-#: Largest force imbalance accepted (forces normalised to mean 1).
-BALANCE = 1e-10
+from configurations import (bidisperse, lognormal, overlap_free, phi_j,
+                            random_sequential_addition)
+from conftest import (BALANCE_TOLERANCE, OVERLAP_TOLERANCE, assert_jammed,
+                      assert_rigid_and_balanced)
 
 # ----------------------------------------------------------------------------- invariants
-
-def net_forces(result) -> np.ndarray:
-    """Net contact force on every particle, recomputed from the returned geometry, (N, d)."""
-    packing = result.packing
-    i, j = result.contacts.T
-    delta = minimum_image(packing.positions[i] - packing.positions[j], packing.box)
-    normals = delta / np.linalg.norm(delta, axis=1)[:, None]
-    net = np.zeros((packing.n, packing.d))
-    np.add.at(net, i, result.forces[:, None] * normals)
-    np.add.at(net, j, -result.forces[:, None] * normals)
-    return net
-
-
-def assert_contacts_are_real(result, tolerance: float = 1e-9) -> None:
-    """Every contact joins two stable particles that touch (|h| < tolerance)."""
-    packing = result.packing
-    i, j = result.contacts.T
-    assert np.all(i < j)
-    assert not result.rattlers[i].any() and not result.rattlers[j].any()
-    delta = minimum_image(packing.positions[i] - packing.positions[j], packing.box)
-    sigma = 0.5 * (packing.diameters[i] + packing.diameters[j])
-    assert np.max(np.abs(np.linalg.norm(delta, axis=1) / sigma - 1), initial=0.0) < tolerance
-
-
-def assert_common(result, balance: float = BALANCE) -> None:
-    """Converged, overlap-free (independent brute force), balanced, normalised."""
-    assert result.converged, result.status
-    assert overlap_free(result.packing) >= -OVERLAP
-    assert_contacts_are_real(result)
-    assert np.all(result.forces > 0)
-    assert result.forces.mean() == pytest.approx(1.0, rel=1e-12)
-    assert np.abs(net_forces(result)).max(initial=0.0) <= balance
-    assert result.force_balance <= balance
-    assert result.dual_normalization == pytest.approx(1.0, abs=1e-10)   # Σ λ σ² = 1
-
-
-def assert_jammed(result, balance: float = BALANCE) -> None:
-    """A jammed, isostatic packing: N_c = d (N_s − 1) + 1, every stable particle ≥ d + 1 contacts."""
-    assert_common(result, balance)
-    packing = result.packing
-    n_stable = int(np.count_nonzero(~result.rattlers))
-    assert n_stable > packing.d + 1, result.status
-    assert result.n_contacts == packing.d * (n_stable - 1) + 1, result.status
-    assert result.isostatic and result.isostaticity_gap == 0
-    counts = np.bincount(result.contacts.ravel(), minlength=packing.n)
-    assert np.all(counts[~result.rattlers] >= packing.d + 1)
-
 
 def assert_rigid(result) -> None:
     """Jammed, isostatic or hyperstatic, and the status says which (small or ordered packings
     can carry redundant contacts)."""
-    assert_common(result)
-    assert result.n_contacts > 0 and result.isostaticity_gap >= 0, result.status
+    assert_rigid_and_balanced(result)
+    assert result.n_contacts > 0, result.status
     if result.isostaticity_gap == 0:
         assert result.isostatic
     else:
         assert f"hyperstatic (isostaticity gap +{result.isostaticity_gap})" in result.status
-    counts = np.bincount(result.contacts.ravel(), minlength=result.packing.n)
-    assert np.all(counts[~result.rattlers] >= result.packing.d + 1)
 
 
 def assert_crystal(result, lattice: str, caged: int = 0) -> None:
     """A jammed crystal: every lattice contact found, hyperstatic, and reported as such."""
-    assert_common(result)
+    assert_rigid_and_balanced(result)
     packing = result.packing
     n_stable = packing.n - caged
     assert int(np.count_nonzero(result.rattlers)) == caged
@@ -105,17 +52,6 @@ def assert_crystal(result, lattice: str, caged: int = 0) -> None:
 
 
 # ----------------------------------------------------------------------------- inputs
-
-def ls_packing(n: int, d: int, seed: int, pressure: float = 1e12) -> Packing:
-    """LS at reduced pressure `pressure` (gaps ~ 1/p σ)."""
-    return generators.lubachevsky_stillinger(dist.monodisperse(n), d=d, target_pressure=pressure,
-                                             seed=seed).packing
-
-
-def phi_j(d: int) -> float:
-    """Typical jamming density of monodisperse spheres (d ≥ 3)."""
-    return {3: 0.64, 4: 0.46, 5: 0.31}[d]
-
 
 def rsa_in_box(n: int, aspect, phi: float, seed: int, diameters=None) -> Packing:
     """Random sequential addition in a rectangular box of the given aspect (unit spheres
@@ -134,14 +70,6 @@ def rsa_in_box(n: int, aspect, phi: float, seed: int, diameters=None) -> Packing
         if np.all(np.einsum("nd,nd->n", delta, delta) > sigma**2):
             placed = np.vstack([placed, trial])
     return Packing(placed, diameters, box)
-
-
-@pytest.fixture(scope="module")
-def nearly_jammed():
-    """Case 1 input: N = 128, d = 3 LS packing at p = 1e12."""
-    packing = ls_packing(128, 3, seed=1)
-    assert 0 <= overlap_free(packing) < 1e-9  # contacts closed to ~1e-12 σ, no overlap
-    return packing
 
 
 @pytest.fixture(scope="module")
@@ -233,9 +161,9 @@ def test_crystal_runs_end_without_overlap_or_error():
                   lattices.fcc(3, 0.98), lattices.triangular(6, 0.98)):
         result = jam(start)
         assert result.converged, result.status
-        assert overlap_free(result.packing) >= -OVERLAP
+        assert overlap_free(result.packing) >= -OVERLAP_TOLERANCE
         assert result.dual_normalization == pytest.approx(1.0, abs=1e-10)
-        assert result.force_balance <= BALANCE
+        assert result.force_balance <= BALANCE_TOLERANCE
         assert result.phi >= start.phi * (1 - 1e-12)
 
 
@@ -393,26 +321,3 @@ def test_single_rattler_in_a_crystal_cage():
     result = jam(Packing(start.positions, diameters, start.box))
     assert_crystal(result, "triangular", caged=1)
     assert result.rattlers[7]
-
-
-# ----------------------------------------------------------------------------- 9. backends
-
-@pytest.mark.parametrize("solver", ["clarabel", "cvxpy"])
-def test_backend_on_nearly_jammed_input(solver, nearly_jammed):
-    result = jam(nearly_jammed, solver=solver)
-    assert_jammed(result)
-    assert result.solver == solver
-
-
-@pytest.mark.parametrize("solver", ["highs", "clarabel", "cvxpy"])
-def test_backend_far_from_jamming(solver):
-    start = random_sequential_addition(64, 3, 0.3 * phi_j(3), seed=8)
-    result = jam(start, solver=solver)
-    assert_jammed(result)
-    assert result.solver == solver
-
-
-@pytest.mark.parametrize("solver", ["highs", "clarabel", "cvxpy"])
-def test_backend_on_a_crystal(solver):
-    result = jam(lattices.fcc(2, fill=0.99), solver=solver)
-    assert_crystal(result, "fcc")

@@ -1,9 +1,10 @@
 """The extreme matrix, slow part (run with ``pytest -m slow tests/test_extremes_slow.py``).
 
-Real p = 1e12 packings from ../shared/data with every backend (cases 1 and 9), larger random
-starts far from jamming in d = 3, 4, 5 (case 2), a small d = 5 box whose default cutoff would
+Real p = 1e12 packings from ../shared/data (case 1), larger random starts far from jamming
+in d = 3, 4, 5 (case 2), a small d = 5 box whose default cutoff would
 exceed half the box (case 5), LS p = 1e12 inputs in d = 4, 5, and the N = 10000 input with
-round-off overlaps (case 7). Run times are listed in docs/stability.md.
+round-off overlaps (case 7). Run times are listed in docs/stability.md. Every backend on
+the slow inputs (case 9): tests/test_backends.py.
 """
 
 from __future__ import annotations
@@ -14,22 +15,10 @@ import calippso
 from calippso import jam
 from calippso.neighbors import min_gap
 
-from configurations import overlap_free, random_sequential_addition
-from test_extremes import assert_jammed, ls_packing, phi_j
+from configurations import ls_packing, phi_j, random_sequential_addition
+from conftest import assert_jammed
 
 pytestmark = pytest.mark.slow
-
-
-@pytest.mark.parametrize("solver", ["highs", "clarabel", "cvxpy"])
-def test_skoge_donev_p1e12_every_backend(shared_data, solver):
-    start = calippso.read(shared_data / "skoge_donev_N1000_d3_p1e12.dat")
-    assert start.n == 1000 and overlap_free(start) > -1e-14   # round-off only
-    result = jam(start, solver=solver)
-    assert_jammed(result)
-    assert result.solver == solver
-    # measured (HiGHS): 125 LPs, phi 0.638386 -> 0.639050 (117 LPs and 0.639156 with
-    # earlier step-bound rules); the file's p = 1e12 state is not at its jamming point
-    assert start.phi <= result.phi < 0.645
 
 
 def test_packing_generation_p1e12_folder(shared_data):
@@ -59,13 +48,6 @@ def test_far_from_jamming_larger(d, n):
     result = jam(start)
     assert_jammed(result)
     assert 0.9 * phi_j(d) < result.phi < 1.05 * phi_j(d)
-
-
-@pytest.mark.parametrize("solver", ["clarabel", "cvxpy"])
-def test_far_from_jamming_d5_other_backends(solver):
-    start = random_sequential_addition(64, 5, 0.3 * phi_j(5), seed=15)
-    result = jam(start, solver=solver)
-    assert_jammed(result)
 
 
 def test_small_box_in_five_dimensions():

@@ -1,25 +1,27 @@
 """Solver failure injection: backends that raise, or return garbage, at chosen LPs.
 
-A wrapper around the real backends (patched in as `calippso.ilp.get_solver`) corrupts the
-answers of one backend from a given LP on. The loop must reject every corrupted answer, retry
+A wrapper around a real backend (registered in its place, `replace_backend` in conftest.py)
+corrupts its answers from a given LP on. The loop must reject every corrupted answer, retry
 and fall back, and still end jammed; when nothing works, the `JammingError` keeps the last
-valid configuration (the one after the last accepted LP) and the history so far.
+valid configuration (the one after the last accepted LP) and the history so far. Only a
+`SolverError` counts as a backend failure: any other exception is a bug and reaches the caller.
+This is the one place where retries and fallbacks are tested.
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
-import calippso.solvers as solvers
 from calippso import JammingError, jam
+from calippso.errors import SolverError
+from calippso.solvers import LPAttempt, get_backend
 
 from configurations import overlap_free, random_sequential_addition
-from test_extremes import assert_jammed
-
-REAL = solvers.get_solver
+from conftest import assert_jammed
 
 
 def _nan_x(solution):
@@ -47,50 +49,53 @@ def _not_optimal(solution):
 
 
 def _raise(solution):
-    raise RuntimeError("injected backend crash")
-
-
-def _memory(solution):
-    raise MemoryError("injected out of memory")
+    raise SolverError("injected backend crash")
 
 
 GARBAGE = {"nan": _nan_x, "wrong-size": _short_x, "rows-violated": _huge_gamma,
-           "bad-normalisation": _scaled_duals, "not-optimal": _not_optimal, "crash": _raise,
-           "out-of-memory": _memory}
+           "bad-normalisation": _scaled_duals, "not-optimal": _not_optimal, "crash": _raise}
 
 
 class Injector:
-    """`get_solver` replacement: backend `target` is corrupted by `fault` at LPs start … stop.
+    """A backend wrapping the real backend `target`: its answers are corrupted by `fault` at
+    LPs start … stop (1-based).
 
     Attributes
     ----------
-    calls : list of (name, lp_index)
-        Every backend call, in order (lp_index counts accepted LPs before the call).
+    calls : list of (name, lp_number)
+        Every backend call of the run, in order (from ``jam(..., on_lp=injector.record)``).
     """
 
     def __init__(self, target: str, fault, start: int = 1, stop: float = np.inf,
                  only_first_try: bool = False):
-        self.target, self.fault, self.start, self.stop = target, fault, start, stop
+        self.inner = get_backend(target)
+        self.name, self.options_type = target, self.inner.options_type
+        self.fault, self.start, self.stop = fault, start, stop
         self.only_first_try = only_first_try
         self.calls: list[tuple[str, int]] = []
-        self.accepted = 0   # updated by the callback of `jam`
+        self.accepted = 0          # LPs accepted so far, from the callback of `jam`
+        self.tries = Counter()     # calls of this backend at each LP
 
     def callback(self, info: dict) -> None:
         self.accepted = info["iteration"]
 
-    def __call__(self, name: str):
-        real = REAL(name)
+    def record(self, attempt: LPAttempt) -> None:
+        self.calls.append((attempt.backend, attempt.lp_number))
 
-        def solve(lp, settings, warm_start=None):
-            self.calls.append((name, self.accepted + 1))
-            solution = real(lp, settings, warm_start=warm_start)
-            current = self.accepted + 1
-            broken = name == self.target and self.start <= current <= self.stop
-            if broken and self.only_first_try:
-                broken = sum(1 for c in self.calls if c == (name, current)) == 1
-            return self.fault(solution) if broken else solution
+    def options(self, settings):
+        return self.inner.options(settings)
 
-        return solve
+    def validate(self, options) -> None:
+        self.inner.validate(options)
+
+    def solve(self, lp, options, warm_start=None):
+        current = self.accepted + 1
+        self.tries[current] += 1
+        solution = self.inner.solve(lp, options, warm_start=warm_start)
+        broken = self.start <= current <= self.stop
+        if broken and self.only_first_try:
+            broken = self.tries[current] == 1
+        return self.fault(solution) if broken else solution
 
 
 @pytest.fixture(scope="module")
@@ -99,12 +104,12 @@ def start():
 
 
 @pytest.mark.parametrize("fault", list(GARBAGE), ids=list(GARBAGE))
-def test_garbage_from_the_main_backend_is_rejected_and_replaced(monkeypatch, start, fault):
+def test_garbage_from_the_main_backend_is_rejected_and_replaced(replace_backend, start, fault):
     """Every answer of HiGHS at LP 3 is corrupted: both tries are refused, Clarabel solves
     LP 3, HiGHS takes over again at LP 4, and the packing ends jammed."""
     injector = Injector("highs", GARBAGE[fault], start=3, stop=3)
-    monkeypatch.setattr("calippso.ilp.get_solver", injector)
-    result = jam(start, callback=injector.callback)
+    replace_backend(injector)
+    result = jam(start, callback=injector.callback, on_lp=injector.record)
     assert_jammed(result)
     assert "LP 3 needed a retry (clarabel" in result.status
     # highs was tried twice (bound, then bound / 4) at LP 3 before the fallback
@@ -113,21 +118,21 @@ def test_garbage_from_the_main_backend_is_rejected_and_replaced(monkeypatch, sta
     assert ("highs", 4) in injector.calls
 
 
-def test_persistently_failing_backend_falls_back(monkeypatch, start):
+def test_persistently_failing_backend_falls_back(replace_backend, start):
     """HiGHS crashes at every LP from LP 3 on: Clarabel carries the run to the end (the step
     bound adapts from the LP actually solved, and the status stays short)."""
     injector = Injector("highs", _raise, start=3)
-    monkeypatch.setattr("calippso.ilp.get_solver", injector)
+    replace_backend(injector)
     result = jam(start, callback=injector.callback, max_iters=150)
     assert_jammed(result)
     assert result.solver == "clarabel"
     assert len(result.status) < 2000
 
 
-def test_transient_failure_is_retried_with_the_same_backend(monkeypatch, start):
+def test_transient_failure_is_retried_with_the_same_backend(replace_backend, start):
     injector = Injector("highs", _raise, start=2, only_first_try=True)
-    monkeypatch.setattr("calippso.ilp.get_solver", injector)
-    result = jam(start, callback=injector.callback)
+    replace_backend(injector)
+    result = jam(start, callback=injector.callback, on_lp=injector.record)
     assert_jammed(result)
     assert result.solver == "highs"
     assert "retry" in result.status
@@ -135,25 +140,19 @@ def test_transient_failure_is_retried_with_the_same_backend(monkeypatch, start):
 
 
 @pytest.mark.parametrize("fault", ["nan", "rows-violated", "crash"])
-def test_every_backend_failing_midway_keeps_the_last_valid_configuration(monkeypatch, start,
-                                                                         fault):
+def test_every_backend_failing_midway_keeps_the_last_valid_configuration(replace_backend,
+                                                                         start, fault):
+    """HiGHS and Clarabel both fail from LP 4 on."""
     seen = {}
+    injectors = [Injector(name, GARBAGE[fault], start=4) for name in ("highs", "clarabel")]
+    for injector in injectors:
+        replace_backend(injector)
 
     def remember(info):
         seen[info["iteration"]] = info["packing"]
+        for injector in injectors:
+            injector.callback(info)
 
-    injector = Injector("any", GARBAGE[fault], start=4)
-    injector.target = None
-
-    def all_broken(name):
-        real = REAL(name)
-
-        def solve(lp, settings, warm_start=None):
-            solution = real(lp, settings, warm_start=warm_start)
-            return GARBAGE[fault](solution) if len(seen) >= 3 else solution
-        return solve
-
-    monkeypatch.setattr("calippso.ilp.get_solver", all_broken)
     with pytest.raises(JammingError, match=r"every LP backend failed at LP 4") as caught:
         jam(start, callback=remember)
     error = caught.value
@@ -163,28 +162,36 @@ def test_every_backend_failing_midway_keeps_the_last_valid_configuration(monkeyp
     np.testing.assert_array_equal(error.packing.diameters, last.diameters)
     assert overlap_free(error.packing) >= -1e-12
     assert error.packing.phi > start.phi
-    lps = error.history[error.history["kind"] == "lp"] if "kind" in error.history.dtype.names \
-        else error.history
-    assert len(lps) == 3
-    # the message names every attempt: the main backend twice, then the fallback
-    assert str(error).count("highs") >= 2 and "clarabel" in str(error)
+    assert np.count_nonzero(error.history["stage"] == "lp") == 3
+    # the message names every attempt: the main backend twice, then the fallback twice
+    assert str(error).count("highs (bound") == 2 and str(error).count("clarabel (bound") == 2
 
 
-def test_error_from_the_first_lp_keeps_the_input(monkeypatch, start):
-    def broken(name):
-        def solve(lp, settings, warm_start=None):
-            raise RuntimeError("injected failure")
-        return solve
-
-    monkeypatch.setattr("calippso.ilp.get_solver", broken)
-    with pytest.raises(JammingError, match="injected failure") as caught:
+def test_error_from_the_first_lp_keeps_the_input(replace_backend, start):
+    for name in ("highs", "clarabel"):
+        replace_backend(Injector(name, _raise))
+    with pytest.raises(JammingError, match="SolverError: injected backend crash") as caught:
         jam(start)
     np.testing.assert_allclose(caught.value.packing.positions, start.wrapped().positions,
                                rtol=0, atol=1e-15 * start.box.max())
     np.testing.assert_allclose(caught.value.packing.diameters, start.diameters, rtol=1e-15)
 
 
-def test_time_of_refused_attempts_is_counted(monkeypatch, start):
+def test_a_bug_in_a_backend_is_not_taken_for_a_solver_failure(replace_backend, start):
+    """Only `SolverError` is a backend failure: another exception raised in a backend ends the
+    run as it is, without retries or fallbacks that would hide it."""
+    def bug(solution):
+        raise KeyError("a bug, not a solver failure")
+
+    injector = Injector("highs", bug, start=2)
+    replace_backend(injector)
+    with pytest.raises(KeyError, match="a bug, not a solver failure"):
+        jam(start, callback=injector.callback, on_lp=injector.record)
+    assert injector.tries[2] == 1
+    assert all(name == "highs" for name, _ in injector.calls)
+
+
+def test_time_of_refused_attempts_is_counted(replace_backend, start):
     """Attempts that fail still took solver time: it goes into the history record of the LP
     that was finally taken, so that the solver time adds up to the time spent solving."""
     pause = 0.2
@@ -193,11 +200,11 @@ def test_time_of_refused_attempts_is_counted(monkeypatch, start):
         import time
 
         time.sleep(pause)
-        raise RuntimeError("injected backend crash after a pause")
+        raise SolverError("injected backend crash after a pause")
 
     injector = Injector("highs", slow_crash, start=3, stop=3)
-    monkeypatch.setattr("calippso.ilp.get_solver", injector)
-    result = jam(start, callback=injector.callback)
+    replace_backend(injector)
+    result = jam(start, callback=injector.callback, on_lp=injector.record)
     lps = result.history[result.history["stage"] == "lp"]
     assert injector.calls.count(("highs", 3)) == 2
     assert lps["solver_time"][2] >= 2 * pause

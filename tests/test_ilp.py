@@ -10,44 +10,11 @@ import numpy as np
 import pytest
 
 import calippso
-from calippso import JammingError, Packing, jam
+from calippso import Packing, jam
 from calippso.packing import minimum_image
-from calippso.solvers.highs import hipo_available
 
 from configurations import bidisperse, lognormal, overlap_free, random_sequential_addition
-
-
-def assert_jammed(result, *, balance=1e-10):
-    """Every invariant a jammed packing must satisfy, checked independently of the loop."""
-    packing = result.packing
-    assert result.converged, result.status
-    assert result.isostatic, result.status
-    assert result.isostaticity_gap == 0
-    # no overlap, brute force over all pairs
-    assert overlap_free(packing) >= -1e-12
-    # contacts: among stable particles only, i < j, and really touching
-    i, j = result.contacts.T
-    assert np.all(i < j)
-    assert not result.rattlers[i].any() and not result.rattlers[j].any()
-    delta = minimum_image(packing.positions[i] - packing.positions[j], packing.box)
-    distance = np.linalg.norm(delta, axis=1)
-    sigma = 0.5 * (packing.diameters[i] + packing.diameters[j])
-    assert np.max(np.abs(distance / sigma - 1)) < 1e-9
-    # every stable particle has at least d + 1 contacts; forces positive, mean 1
-    counts = np.bincount(result.contacts.ravel(), minlength=packing.n)
-    assert np.all(counts[~result.rattlers] >= packing.d + 1)
-    assert np.all(result.forces > 0)
-    assert result.forces.mean() == pytest.approx(1.0, rel=1e-12)
-    # force balance recomputed here from the returned geometry
-    normals = delta / distance[:, None]
-    net = np.zeros((packing.n, packing.d))
-    np.add.at(net, i, result.forces[:, None] * normals)
-    np.add.at(net, j, -result.forces[:, None] * normals)
-    assert np.abs(net).max() <= balance
-    assert result.force_balance <= balance
-    assert result.dual_normalization == pytest.approx(1.0, abs=1e-8)
-    lp_stages = np.isin(result.history["stage"], ["lp", "cleanup"])
-    assert result.iterations == np.count_nonzero(lp_stages)
+from conftest import assert_jammed
 
 
 @pytest.mark.parametrize(
@@ -76,45 +43,6 @@ def test_lognormal_polydisperse():
     assert_jammed(result)
     np.testing.assert_allclose(result.packing.diameters / start.diameters,
                                result.packing.diameters[0] / start.diameters[0], rtol=1e-12)
-
-
-@pytest.mark.parametrize("solver", ["highs", "clarabel", "cvxpy"])
-def test_every_backend_jams(solver):
-    start = random_sequential_addition(64, 3, 0.3, seed=11)
-    result = jam(start, solver=solver)
-    assert_jammed(result, balance=1e-10)
-    assert result.solver == solver
-
-
-@pytest.mark.parametrize("interior_point", ["ipx", "hipo"])
-def test_both_interior_points_jam(interior_point):
-    """HiPO (with the hipo extra) jams like IPX; without it, the run is refused up front.
-    No warm starts, so that every LP is solved by the interior point under test."""
-    start = random_sequential_addition(64, 3, 0.3, seed=11)
-    if interior_point == "hipo" and not hipo_available():
-        with pytest.raises(ValueError, match=r"HiPO needs the highspy-extras package"):
-            jam(start, interior_point="hipo")
-        return
-    assert_jammed(jam(start, interior_point=interior_point, warm_start=False))
-
-
-def test_auto_interior_point_takes_hipo_for_large_lps_only(monkeypatch):
-    """"auto" picks HiPO from HIPO_MIN_COLUMNS columns on where it is installed, IPX
-    otherwise; N = 1024 in d = 3 and 4 stays with IPX."""
-    from types import SimpleNamespace
-
-    import calippso.solvers.highs as highs
-
-    small, large = SimpleNamespace(n_cols=highs.HIPO_MIN_COLUMNS - 1), SimpleNamespace(
-        n_cols=highs.HIPO_MIN_COLUMNS)
-    assert 4 * 1024 + 1 < highs.HIPO_MIN_COLUMNS <= 3 * 2048 + 1
-    assert highs.interior_point_for(large, "ipx") == "ipx"
-    assert highs.interior_point_for(small, "hipo") == "hipo"
-    monkeypatch.setattr(highs, "hipo_available", lambda: True)
-    assert highs.interior_point_for(small, "auto") == "ipx"
-    assert highs.interior_point_for(large, "auto") == "hipo"
-    monkeypatch.setattr(highs, "hipo_available", lambda: False)
-    assert highs.interior_point_for(large, "auto") == "ipx"
 
 
 @pytest.mark.slow
@@ -239,51 +167,6 @@ def test_duplicated_particle_is_refused():
     positions[1] = positions[0]
     with pytest.raises(ValueError, match="duplicated particles.*particles 0 and 1"):
         jam(Packing(positions, start.diameters, start.box))
-
-
-def test_unknown_solver_and_option():
-    start = random_sequential_addition(16, 2, 0.3, seed=1)
-    with pytest.raises(ValueError, match="unknown solver"):
-        jam(start, solver="gurobi")
-    with pytest.raises(ValueError, match="unknown interior_point 'simplex'"):
-        jam(start, interior_point="simplex")
-    with pytest.raises(TypeError, match="unknown jam option"):
-        jam(start, not_an_option=1)
-
-
-def test_failing_backend_falls_back(monkeypatch):
-    import calippso.solvers as solvers
-
-    real = solvers.get_solver
-
-    def broken_highs(name):
-        if name == "highs":
-            def fail(lp, settings, warm_start=None):
-                raise RuntimeError("injected failure")
-            return fail
-        return real(name)
-
-    monkeypatch.setattr("calippso.ilp.get_solver", broken_highs)
-    start = random_sequential_addition(48, 3, 0.3, seed=12)
-    result = jam(start)
-    assert_jammed(result)
-    assert result.solver == "clarabel"
-    assert "retry" in result.status
-
-
-def test_every_backend_failing_keeps_last_configuration(monkeypatch):
-    def broken(name):
-        def fail(lp, settings, warm_start=None):
-            raise RuntimeError("injected failure")
-        return fail
-
-    monkeypatch.setattr("calippso.ilp.get_solver", broken)
-    start = random_sequential_addition(48, 3, 0.3, seed=12)
-    with pytest.raises(JammingError, match="every LP backend failed") as caught:
-        jam(start)
-    assert caught.value.packing is not None
-    np.testing.assert_allclose(caught.value.packing.positions, start.wrapped().positions)
-
 
 
 def test_jam_writes_nothing_to_standard_output():

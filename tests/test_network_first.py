@@ -18,7 +18,7 @@ from calippso.network_guess import guess_networks
 from calippso.neighbors import NeighborSearch
 
 import lattices
-from test_extremes import assert_jammed
+from conftest import assert_jammed
 
 #: Relative shrink of the diameters, and size of the random displacements (mean diameters),
 #: that make a near-jammed input from a jammed packing.
