@@ -28,8 +28,9 @@ from .contacts import (contact_mask, force_balance, isostaticity_gap, polish_for
 from .errors import JammingError, SolverError
 from .lp import LinearProgram, build_lp, largest_safe_step, select_pairs
 from .neighbors import NeighborSearch, Pairs
-from .network_guess import NetworkGuess, check_network_hint, guess_networks
-from .newton import refine_isostatic
+from .network_first import SettledNetwork, settle_candidate
+from .network_guess import Candidate, candidate_networks, check_network_hint
+from .newton import Refinement, refine_isostatic
 from .packing import Packing, wrap
 from .precompress import precompress, precompress_checkpoint
 from .rattlers import separate_rattlers
@@ -56,8 +57,8 @@ INITIAL_STEP_FLOOR = 1e-3
 LOOSE_INPUT_GAP = 1e-3
 #: The loop stops as stalled (not converged) after this many LPs without progress.
 STALL_LPS = 25
-#: Candidate networks the network-first stage hands to the Newton stage at most (each costs a
-#: sparse factorisation).
+#: Candidate networks the network-first stage settles at most (each costs a few sparse
+#: factorisations).
 MAX_NETWORK_GUESSES = 3
 #: Pairs closer than this relative gap count as touching when the LP duals are degenerate
 #: (`_Jammer._hyperstatic_network`).
@@ -716,46 +717,63 @@ class _Jammer:
         """The input's own contact network, certified by the Newton stage with no LP, or None.
 
         Candidates come from `calippso.network_guess` (the hint first, then the gap
-        spectrum); at most `MAX_NETWORK_GUESSES` go to the Newton stage. Each adds a history
-        record (stage "guess"), a certified one also the Newton record; the status notes say
-        what happened.
+        spectrum); at most `MAX_NETWORK_GUESSES` are settled by `calippso.network_first`
+        (restricted LP and Newton, a few rounds) and certified by the Newton stage. Each
+        adds a history record (stage "guess"), a certified one also the Newton record; the
+        status notes say what happened.
         """
         start = time.perf_counter()
-        guesses = guess_networks(self.search, self.d, self.hint)[:MAX_NETWORK_GUESSES]
-        if not guesses:
+        candidates = candidate_networks(self.search, self.d, self.hint)[:MAX_NETWORK_GUESSES]
+        if not candidates:
             self.notes.append("network first: the input holds no isostatic contact network "
                               "(not near a jamming point), so the LP loop ran")
             return None
         failures = []
-        for guess in guesses:
-            self._record_guess(guess, time.perf_counter() - start)
-            network = _Network(guess.i, guess.j, np.zeros(guess.i.shape[0]), guess.rattlers,
-                               float("nan"), "none", from_lp=False)
-            origin = (f"{'given as a hint' if guess.source == 'hint' else 'read from the gap spectrum'}"
-                      f", {guess.i.shape[0]} contacts"
-                      + (f", {guess.dropped} near-contact(s) dropped" if guess.dropped else ""))
-            refined = self._newton(network, origin=origin)
-            if refined is not None:
-                if self.callback is not None:
-                    self.callback({**self.records[-1], "iteration": 0, "packing": self.packing()})
-                return refined
-            failures.append(f"{guess.source}: {self.newton_failure}")
-            # refused here, from the input's positions: the LP loop may still reach this
-            # network, and its Newton stage must not skip it as tried before
-            self.failed_networks.discard(_network_key(guess.i, guess.j, self.n))
+        for candidate in candidates:
+            settled, failure = settle_candidate(self.search, candidate, self.d)
+            self._record_guess(candidate, settled, time.perf_counter() - start)
+            if settled is not None:
+                network = _Network(settled.i, settled.j, np.zeros(settled.i.shape[0]),
+                                   settled.rattlers, float("nan"), "none", from_lp=False)
+                origin = (f"{'given as a hint' if candidate.source == 'hint' else 'read from the gap spectrum'}"
+                          f", {settled.i.shape[0]} contacts"
+                          + (f", {settled.opened} near pair(s) left open" if settled.opened else "")
+                          + (f", settled in {settled.rounds} rounds" if settled.rounds > 1 else ""))
+                refined = self._newton(network, origin=origin, refined=settled.refinement)
+                if refined is not None:
+                    if self.callback is not None:
+                        self.callback({**self.records[-1], "iteration": 0,
+                                       "packing": self.packing()})
+                    return refined
+                failure = self.newton_failure
+                # refused here, from the input's positions: the LP loop may still reach this
+                # network, and its Newton stage must not skip it as tried before
+                self.failed_networks.discard(_network_key(settled.i, settled.j, self.n))
+            failures.append(f"{candidate.source}: {failure}")
             start = time.perf_counter()
         self.notes.append(f"network first: no guessed network was certified "
                           f"({'; '.join(failures)}), so the LP loop ran")
         return None
 
-    def _record_guess(self, guess: NetworkGuess, seconds: float) -> None:
-        """History record of one guessed network (stage "guess"; no LP, nothing moves)."""
+    def _record_guess(self, candidate: Candidate, settled: SettledNetwork | None,
+                      seconds: float) -> None:
+        """History record of one candidate network (stage "guess"; no LP, nothing moves):
+        the contacts and isostaticity gap of the settled network, or of the candidate's
+        pairs when it did not settle."""
         close = self.search.pairs_within(float(self.diameters.max()) * (1.0 + 1e-6))
+        if settled is not None:
+            n_contacts, stable = int(settled.i.shape[0]), ~settled.rattlers
+        else:
+            rattlers, kept = remove_rattlers(self.n, self.d, candidate.pairs.i,
+                                             candidate.pairs.j)
+            n_contacts, stable = int(kept.sum()), ~rattlers
         self.records.append({
             "stage": "guess", "wall_time": time.perf_counter() - self.start,
             "solver_time": seconds, "sqrt_gamma_minus_1": 0.0, "max_displacement": 0.0,
-            "rows": 0, "step_bound": float("nan"), "n_contacts": int(guess.i.shape[0]),
-            "isostaticity_gap": 0, "force_balance": float("nan"),
+            "rows": len(candidate.pairs), "step_bound": float("nan"),
+            "n_contacts": n_contacts,
+            "isostaticity_gap": isostaticity_gap(n_contacts, int(stable.sum()), self.d),
+            "force_balance": float("nan"),
             "min_gap": float(close.gaps.min()) if len(close) else float("inf"),
             "phi": self.packing().phi,
         })
@@ -765,8 +783,8 @@ class _Jammer:
             self.callback({**self.records[-1], "iteration": 0, "packing": self.packing()})
 
     # ----------------------------------------------------------------- Newton stage
-    def _newton(self, network: _Network, retry: bool = False,
-                origin: str | None = None) -> _Network | None:
+    def _newton(self, network: _Network, retry: bool = False, origin: str | None = None,
+                refined: Refinement | None = None) -> _Network | None:
         """Solve the contact equations of an isostatic network; None unless certified.
 
         Certified means: every force positive and no other pair overlapping beyond
@@ -774,7 +792,8 @@ class _Jammer:
         now overlap are first moved out of the way (`calippso.rattlers.separate_rattlers`).
         A network that failed once is not tried again, unless `retry` (at the end of the
         loop, from the converged positions). `origin` describes a network that did not come
-        from an LP (the network-first stage), for the status.
+        from an LP (the network-first stage), for the status; `refined` is its Newton
+        solution from the current positions when already computed (`calippso.network_first`).
         On success the configuration moves to the certified jamming point and a history
         record (stage "newton") is added; on failure `newton_failure` says why.
         """
@@ -784,8 +803,9 @@ class _Jammer:
             self.newton_failure = "tried before"
             return None
         start = time.perf_counter()
-        refined = refine_isostatic(self.positions, self.diameters, self.box, network.i,
-                                   network.j, ~network.rattlers)
+        if refined is None:
+            refined = refine_isostatic(self.positions, self.diameters, self.box, network.i,
+                                       network.j, ~network.rattlers)
         if refined is None:
             self.failed_networks.add(key)
             self.newton_failure = "Newton did not converge or the Jacobian is singular"

@@ -6,15 +6,14 @@ perturbed jammed packing), the next pairs usually orders of magnitude further, b
 largest jump of the sorted gaps. After recursive rattler removal the contacts form an
 isostatic network, N_c = d (N_s − 1) + 1, and the Newton stage (`calippso.newton`) can prove
 its jamming point with no LP. The candidates, in order: a network handed over by the caller
-(a hint, e.g. the overlap network of a soft-sphere quench); the fewest closest pairs that
-make an isostatic network, when they all lie within `NEAR_CONTACT_GAP` of contact (in d = 5
-the gaps above the contacts rise smoothly, with no clear jump); the pairs below the largest
-jumps of the sorted gaps.
+(a hint, e.g. the overlap network of a soft-sphere quench) together with the pairs nearly as
+close as its farthest contact; the fewest closest pairs that make an isostatic network, when
+they all lie within `NEAR_CONTACT_GAP` of contact (in d = 5 the gaps above the contacts rise
+smoothly, with no clear jump); the pairs below the largest jumps of the sorted gaps.
 
-Not every near-jammed input has a clean jump: a candidate may hold a few near-contacts too
-many (hyperstatic by a few). The pairs with the largest gaps are then dropped, one by one and
-never one that would make a particle a rattler, until the count is isostatic. Each candidate
-is only a guess: the certificate of the Newton stage decides.
+A candidate may hold a few pairs too many (hyperstatic) or be a few pairs off the jammed
+network: `calippso.network_first` settles it with the LP restricted to its pairs and the
+Newton stage, and the certificate decides.
 """
 
 from __future__ import annotations
@@ -25,8 +24,9 @@ import numpy as np
 
 from .contacts import isostaticity_gap, remove_rattlers
 from .neighbors import NeighborSearch, Pairs
+from .restricted_lp import MAX_OPEN_CONTACTS
 
-__all__ = ["NetworkGuess", "guess_networks", "check_network_hint"]
+__all__ = ["CANDIDATE_GAP", "Candidate", "candidate_networks", "check_network_hint"]
 
 #: Pairs with a relative gap h below this are candidates for contacts. A near-jammed input has
 #: its contacts within ~1e-6 of closing; 1e-3 leaves room for the jump above them.
@@ -42,40 +42,43 @@ SPLITS_TRIED = 3
 #: within ~1e-7 of closing (an LS slow end to p = 1e7, a quench shrunk by its overlaps), those
 #: of a compressed LS state (p ≤ 1e5, gaps ~1e-5) do not.
 NEAR_CONTACT_GAP = 1e-6
-#: A candidate hyperstatic by more than this many contacts is not trimmed: such a network is
-#: a crystal or a compressed state, not a jamming point with a few near-contacts.
+#: A hint's candidate also holds the pairs with gaps below this factor times its largest
+#: contact gap: near-contacts that may close on the way to the jamming point (the pairs of a
+#: soft-sphere quench that did not overlap but were closer than its largest overlap lie
+#: below 2×). Later rounds of `calippso.network_first` read the pairs within the same
+#: factor of every candidate's largest gap.
+NEAR_PAIR_FACTOR = 2.0
+#: A candidate read from the gap spectrum that is hyperstatic by more than this many contacts
+#: is not tried: such a network is a crystal or a compressed state, not a jamming point with
+#: a few near-contacts. (A hint is tried whatever its excess, up to the limit of
+#: `calippso.restricted_lp`.)
 MAX_EXCESS_CONTACTS = 12
 
 
 @dataclass(frozen=True, eq=False)
-class NetworkGuess:
-    """An isostatic candidate contact network.
+class Candidate:
+    """Pairs that may hold the contact network of a near-jammed configuration.
 
     Attributes
     ----------
-    i, j : ndarray, shape (M,), int64
-        Contacts between stable particles, i < j, with M = d (N_s − 1) + 1.
-    rattlers : ndarray, shape (N,), bool
-        Particles with fewer than d + 1 contacts, removed recursively.
+    pairs : Pairs
+        The candidate pairs, with their geometry at the input.
     source : str
-        "hint" (the network handed to `jam`) or "gap spectrum".
-    largest_gap : float
-        Largest relative gap h among the contacts.
-    dropped : int
-        Candidate pairs dropped to make the network isostatic.
+        "hint" (the network handed to `jam`, with its near pairs) or "gap spectrum".
+    near_gap : float
+        Relative gap below which pairs are read again as candidates in later rounds
+        (`NEAR_PAIR_FACTOR` × the largest gap of the candidate's pairs, at most
+        `CANDIDATE_GAP`).
     """
 
-    i: np.ndarray
-    j: np.ndarray
-    rattlers: np.ndarray
+    pairs: Pairs
     source: str
-    largest_gap: float
-    dropped: int
+    near_gap: float
 
     @property
     def key(self) -> bytes:
-        """The sorted contact keys i N + j, as bytes (identifies the network)."""
-        return np.sort(self.i * self.rattlers.size + self.j).tobytes()
+        """The sorted pair keys i·2³² + j, as bytes (identifies the candidate)."""
+        return np.sort((self.pairs.i << 32) | self.pairs.j).tobytes()
 
 
 def check_network_hint(network, n: int) -> np.ndarray:
@@ -97,9 +100,9 @@ def check_network_hint(network, n: int) -> np.ndarray:
     return np.unique(np.sort(pairs.astype(np.int64), axis=1), axis=0)
 
 
-def guess_networks(search: NeighborSearch, d: int,
-                   hint: np.ndarray | None = None) -> list[NetworkGuess]:
-    """Isostatic candidate networks of a configuration, the most likely first.
+def candidate_networks(search: NeighborSearch, d: int,
+                       hint: np.ndarray | None = None) -> list[Candidate]:
+    """Candidate contact networks of a configuration, the most likely first.
 
     Parameters
     ----------
@@ -108,37 +111,44 @@ def guess_networks(search: NeighborSearch, d: int,
     d : int
         Dimension.
     hint : ndarray, shape (M, 2), optional
-        A network handed over by the caller (`check_network_hint`); tried first.
+        A network handed over by the caller (`check_network_hint`); tried first, with the
+        pairs whose gaps are below `NEAR_PAIR_FACTOR` × its largest.
 
     Returns
     -------
-    list of NetworkGuess
-        Distinct isostatic candidates: the hint's; the fewest closest pairs that make an
-        isostatic network, if all their gaps are below `NEAR_CONTACT_GAP`; then one per split
-        of the gap spectrum (the `SPLITS_TRIED` largest jumps). Each is trimmed
-        of its largest-gap pairs when it is hyperstatic by at most `MAX_EXCESS_CONTACTS`.
-        Empty when nothing qualifies.
+    list of Candidate
+        Distinct candidates that are not hypostatic after rattler removal, and hyperstatic by
+        at most `MAX_EXCESS_CONTACTS` when read from the gap spectrum: the hint's; the
+        fewest closest pairs that make an isostatic network, if all their gaps are below
+        `NEAR_CONTACT_GAP`; then one per split of the gap spectrum (the `SPLITS_TRIED`
+        largest jumps). Empty when nothing qualifies.
     """
     n = search.positions.shape[0]
     close = search.pairs_within(float(search.diameters.max()) * (1.0 + CANDIDATE_GAP))
     close = close.subset(close.gaps < CANDIDATE_GAP)
-    order = np.argsort(close.gaps, kind="stable")
-    ranked = close.subset(order)
-    candidates: list[tuple[Pairs, str]] = []
+    ranked = close.subset(np.argsort(close.gaps, kind="stable"))
+    candidates: list[Candidate] = []
     if hint is not None and hint.shape[0]:
-        candidates.append((search.pairs_of(hint[:, 0], hint[:, 1]), "hint"))
+        hinted = search.pairs_of(hint[:, 0], hint[:, 1])
+        near_gap = _near_gap(hinted)
+        near = close.subset(close.gaps < near_gap)
+        pairs = np.unique(np.concatenate([hint, np.column_stack([near.i, near.j])]), axis=0)
+        candidates.append(Candidate(search.pairs_of(pairs[:, 0], pairs[:, 1]), "hint",
+                                    near_gap))
     isostatic = _isostatic_count(ranked, n, d)
     near = isostatic > 0 and ranked.gaps[isostatic - 1] < NEAR_CONTACT_GAP
-    counts = ([isostatic] if near else []) + _splits(ranked.gaps, n, d)
-    candidates += [(ranked.subset(np.arange(count)), "gap spectrum") for count in counts]
-    guesses: list[NetworkGuess] = []
+    for count in ([isostatic] if near else []) + _splits(ranked.gaps, n, d):
+        pairs = ranked.subset(np.arange(count))
+        candidates.append(Candidate(pairs, "gap spectrum", _near_gap(pairs)))
+    unique: list[Candidate] = []
     seen: set[bytes] = set()
-    for pairs, source in candidates:
-        guess = _isostatic_network(pairs, n, d, source)
-        if guess is not None and guess.key not in seen:
-            seen.add(guess.key)
-            guesses.append(guess)
-    return guesses
+    for candidate in candidates:
+        excess = _excess(candidate.pairs, n, d)
+        limit = MAX_OPEN_CONTACTS if candidate.source == "hint" else MAX_EXCESS_CONTACTS
+        if 0 <= excess <= limit and candidate.key not in seen:
+            seen.add(candidate.key)
+            unique.append(candidate)
+    return unique
 
 
 def _splits(sorted_gaps: np.ndarray, n: int, d: int) -> list[int]:
@@ -178,37 +188,14 @@ def _isostatic_count(ranked: Pairs, n: int, d: int) -> int:
     return low
 
 
-def _isostatic_network(pairs: Pairs, n: int, d: int, source: str) -> NetworkGuess | None:
-    """The candidate after rattler removal, trimmed to isostatic; None if it cannot be."""
+def _near_gap(pairs: Pairs) -> float:
+    """`NEAR_PAIR_FACTOR` × the largest gap of the pairs, at most `CANDIDATE_GAP`."""
+    largest = max(float(pairs.gaps.max(initial=0.0)), ROUNDOFF_GAP)
+    return min(NEAR_PAIR_FACTOR * largest, CANDIDATE_GAP)
+
+
+def _excess(pairs: Pairs, n: int, d: int) -> int:
+    """The isostaticity gap of the pairs after rattler removal; −1 if nothing is stable."""
     rattlers, kept = remove_rattlers(n, d, pairs.i, pairs.j)
     n_stable = int(n - rattlers.sum())
-    excess = isostaticity_gap(int(kept.sum()), n_stable, d)
-    if n_stable == 0 or excess < 0 or excess > MAX_EXCESS_CONTACTS:
-        return None
-    dropped = 0
-    if excess > 0:
-        kept = _trimmed(pairs, kept, n, d, excess)
-        if kept is None:
-            return None
-        dropped = excess
-    gaps = pairs.gaps[kept]
-    return NetworkGuess(pairs.i[kept], pairs.j[kept], rattlers, source,
-                        float(gaps.max(initial=0.0)), dropped)
-
-
-def _trimmed(pairs: Pairs, kept: np.ndarray, n: int, d: int,
-             excess: int) -> np.ndarray | None:
-    """Drop `excess` kept pairs, the largest gaps first, never one whose removal would leave a
-    particle with fewer than d + 1 contacts; None if too few pairs can go."""
-    kept = kept.copy()
-    counts = np.bincount(pairs.i[kept], minlength=n) + np.bincount(pairs.j[kept], minlength=n)
-    for k in np.flatnonzero(kept)[np.argsort(-pairs.gaps[kept], kind="stable")]:
-        if excess == 0:
-            break
-        a, b = pairs.i[k], pairs.j[k]
-        if counts[a] > d + 1 and counts[b] > d + 1:
-            kept[k] = False
-            counts[a] -= 1
-            counts[b] -= 1
-            excess -= 1
-    return kept if excess == 0 else None
+    return isostaticity_gap(int(kept.sum()), n_stable, d) if n_stable else -1

@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from .packing import minimum_image, wrap
 from .sparse_lu import Factors, factorize
 
-__all__ = ["Refinement", "refine_isostatic", "contact_jacobian"]
+__all__ = ["Refinement", "refine_isostatic", "contact_jacobian", "network_jacobian"]
 
 #: Newton stops once the largest correction is below this (mean diameters); quadratic
 #: convergence then leaves an error far below round-off.
@@ -128,6 +128,27 @@ def _first_columns(stable: np.ndarray, d: int) -> np.ndarray:
     return block
 
 
+def network_jacobian(vectors: np.ndarray, sigma: np.ndarray, i: np.ndarray, j: np.ndarray,
+                     stable: np.ndarray) -> sp.csr_matrix:
+    """The Jacobian of the contact equations of a network, shape (M, d (N_s − 1) + 1).
+
+    Parameters
+    ----------
+    vectors : ndarray, shape (M, d)
+        Separations r_c = x_i − x_j of the contacts (minimum image), length units.
+    sigma : ndarray, shape (M,)
+        Contact distances σ_c, same units.
+    i, j : ndarray, shape (M,), int
+        The contacts, between stable particles.
+    stable : ndarray, shape (N,), bool
+        Non-rattlers; the first stable particle is pinned (it has no columns).
+    """
+    d = vectors.shape[1]
+    n_unknowns = d * (int(np.count_nonzero(stable)) - 1) + 1
+    block = _first_columns(stable, d)
+    return _jacobian(vectors, 1.0 / sigma**2, block[i], block[j], n_unknowns).tocsr()
+
+
 def contact_jacobian(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                      i: np.ndarray, j: np.ndarray, stable: np.ndarray) -> sp.csc_matrix:
     """The Jacobian of the contact equations at a configuration (as `refine_isostatic` builds
@@ -135,12 +156,9 @@ def contact_jacobian(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
 
     Parameters are those of `refine_isostatic`.
     """
-    d = positions.shape[1]
-    n_unknowns = d * (int(np.count_nonzero(stable)) - 1) + 1
-    block = _first_columns(stable, d)
     sigma = 0.5 * (diameters[i] + diameters[j])
     vectors = minimum_image(positions[i] - positions[j], box)
-    return _jacobian(vectors, 1.0 / sigma**2, block[i], block[j], n_unknowns)
+    return network_jacobian(vectors, sigma, i, j, stable).tocsc()
 
 
 def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,

@@ -1,0 +1,152 @@
+"""Settle a candidate network of a near-jammed input without a sparse LP: the restricted LP
+chooses the contacts, Newton solves them, and a few rounds repair what is off.
+
+Round 0 takes a candidate from `calippso.network_guess` (pairs that may be hyperstatic by a
+few, or a few pairs off the jammed network). Each round
+
+1. keeps the candidate pairs with a positive multiplier at the optimum of the CALiPPSO LP
+   restricted to them (`calippso.restricted_lp`): an isostatic network;
+2. solves its contact equations from the input by Newton (`calippso.newton`);
+3. accepts the network when every force is positive and no other pair of stable particles
+   overlaps at that jamming point. Otherwise the next round reads the candidates at that
+   point (the pairs within `near_gap` of contact: the network, the pairs that overlap, those
+   about to close) and the restricted LP, linearised there, chooses again.
+
+When the candidate pairs cannot hold a positive self-stress (the restricted LP is
+unbounded), a pair that must close is missing: the round reads the pairs `WIDENING` times
+farther from contact instead (never beyond `calippso.network_guess.CANDIDATE_GAP`).
+
+This is the loop of `calippso.ilp` with only near pairs as rows and Newton as the update.
+The caller (`jam`) still certifies the accepted network (overlaps, rattlers, the touching
+test) before it ends a run with no LP.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contacts import isostaticity_gap, remove_rattlers
+from .neighbors import NeighborSearch, Pairs
+from .network_guess import CANDIDATE_GAP, Candidate
+from .newton import Refinement, refine_isostatic
+from .restricted_lp import TOO_FEW, lp_network
+
+__all__ = ["MAX_ROUNDS", "SettledNetwork", "settle_candidate"]
+
+#: Rounds of restricted LP and Newton tried per candidate (each costs two or three sparse
+#: factorisations); a near-jammed input settles in one to three.
+MAX_ROUNDS = 6
+#: When the candidate pairs hold no positive self-stress (the restricted LP is unbounded:
+#: a pair that closes on the way to the jamming point is missing), the pairs within this
+#: factor farther from contact are read too, in a round of their own.
+WIDENING = 4.0
+#: A pair of stable particles outside the network may overlap at its jamming point by at most
+#: this relative gap (round-off); the same tolerance as the certificate of `jam`.
+OVERLAP_TOLERANCE = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class SettledNetwork:
+    """An isostatic network whose Newton solution has positive forces and no overlap.
+
+    Attributes
+    ----------
+    i, j : ndarray, shape (M,), int64
+        Contacts between stable particles, i < j, with M = d (N_s − 1) + 1.
+    rattlers : ndarray, shape (N,), bool
+        Particles outside the network (fewer than d + 1 contacts, removed recursively).
+    source : str
+        The candidate's source ("hint" or "gap spectrum").
+    rounds : int
+        Rounds of restricted LP and Newton taken (1 when the first choice held).
+    opened : int
+        Candidate pairs that the first restricted LP left open.
+    largest_gap : float
+        Largest relative gap among the contacts at the input.
+    refinement : Refinement
+        The Newton solution from the input (positions, diameters, forces).
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    rattlers: np.ndarray
+    source: str
+    rounds: int
+    opened: int
+    largest_gap: float
+    refinement: Refinement
+
+
+def settle_candidate(search: NeighborSearch, candidate: Candidate,
+                     d: int) -> tuple[SettledNetwork | None, str]:
+    """Rounds of restricted LP and Newton from a candidate (module doc).
+
+    Parameters
+    ----------
+    search : NeighborSearch
+        The input configuration (mean-diameter units).
+    candidate : Candidate
+        Pairs to choose from, at the input.
+    d : int
+        Dimension.
+
+    Returns
+    -------
+    (SettledNetwork or None, str)
+        The settled network, or None and why the last round failed.
+    """
+    n = search.positions.shape[0]
+    current, base, near_gap = search, candidate.pairs, candidate.near_gap
+    pairs, opened, failure = base, -1, ""
+    for round_number in range(1, MAX_ROUNDS + 1):
+        closed, failure = lp_network(pairs, n, d)
+        if closed is None:
+            if failure != TOO_FEW or near_gap >= CANDIDATE_GAP:
+                break
+            # pairs are missing: read those a little farther from contact
+            near_gap = min(near_gap * WIDENING, CANDIDATE_GAP)
+            pairs = _union(current, base, _near_pairs(current, near_gap))
+            continue
+        if opened < 0:
+            opened = int(len(pairs) - closed.sum())
+        rattlers, kept = remove_rattlers(n, d, pairs.i[closed], pairs.j[closed])
+        i, j = pairs.i[closed][kept], pairs.j[closed][kept]
+        if isostaticity_gap(i.shape[0], int(n - rattlers.sum()), d) != 0:
+            return None, "the restricted LP's network is not isostatic"
+        refined = refine_isostatic(search.positions, search.diameters, search.box, i, j,
+                                   ~rattlers)
+        if refined is None:
+            return None, "Newton did not converge or the Jacobian is singular"
+        current = NeighborSearch(refined.positions, refined.diameters, search.box)
+        near = _near_pairs(current, near_gap)
+        if refined.positive and not _overlaps_outside(near, i, j, rattlers).any():
+            gaps = search.pairs_of(i, j).gaps
+            return SettledNetwork(i, j, rattlers, candidate.source, round_number, opened,
+                                  float(gaps.max(initial=0.0)), refined), ""
+        failure = "a non-positive force" if not refined.positive else "an overlap"
+        base, pairs = current.pairs_of(i, j), near
+    return None, f"not settled in {MAX_ROUNDS} rounds ({failure})"
+
+
+def _near_pairs(search: NeighborSearch, near_gap: float) -> Pairs:
+    """The pairs with relative gaps below `near_gap` (overlaps included)."""
+    near = search.pairs_within(float(search.diameters.max()) * (1.0 + near_gap))
+    return near.subset(near.gaps < near_gap)
+
+
+def _union(search: NeighborSearch, first: Pairs, second: Pairs) -> Pairs:
+    """The pairs of both lists, once each, with their geometry in `search`."""
+    both = np.unique(np.column_stack([np.concatenate([first.i, second.i]),
+                                      np.concatenate([first.j, second.j])]), axis=0)
+    return search.pairs_of(both[:, 0], both[:, 1])
+
+
+def _overlaps_outside(near: Pairs, i: np.ndarray, j: np.ndarray,
+                      rattlers: np.ndarray) -> np.ndarray:
+    """Which near pairs of two stable particles overlap without being a contact, shape (P,)."""
+    n = rattlers.shape[0]
+    outside = ~np.isin(near.i * n + near.j, i * n + j)
+    stable = ~rattlers[near.i] & ~rattlers[near.j]
+    return outside & stable & (near.gaps < -OVERLAP_TOLERANCE)
