@@ -180,8 +180,12 @@ def test_weakest_rule_keeps_the_weakest_force_of_each_buckler(jammed):
     assert len(local) + len(extended) == jammed.n_contacts
 
 
-def _opening_by_least_squares(result: JammingResult, contact: int) -> np.ndarray:
-    """Displacements (N_s, d) of the minimum-norm response to opening `contact` by 1."""
+def _openings_by_least_squares(result: JammingResult, contacts: list[int]) -> np.ndarray:
+    """Displacements, shape (len(contacts), N_s, d), of the minimum-norm responses to opening
+    each of `contacts` by 1, from a QR factorisation of the compatibility matrix's transpose
+    (independent of the LU that `opening_response` uses)."""
+    from scipy.linalg import solve_triangular
+
     from calippso.contacts import equilibrium_matrix
 
     stable = ~result.rattlers
@@ -190,11 +194,12 @@ def _opening_by_least_squares(result: JammingResult, contact: int) -> np.ndarray
     normals = result.contact_vectors / np.linalg.norm(result.contact_vectors, axis=1)[:, None]
     sigma = 0.5 * result.packing.diameters[result.contacts].sum(axis=1)
     compatibility = equilibrium_matrix(int(stable.sum()), i, j, normals).T.toarray()
-    matrix = np.column_stack([compatibility, -sigma])
-    opening = np.zeros(result.n_contacts)
-    opening[contact] = 1.0
-    solution = np.linalg.lstsq(matrix, opening, rcond=None)[0]
-    return solution[:-1].reshape(-1, result.d)
+    matrix = np.column_stack([compatibility, -sigma])      # (M, N_s d + 1), full row rank
+    openings = np.zeros((result.n_contacts, len(contacts)))
+    openings[contacts, np.arange(len(contacts))] = 1.0
+    q, r = np.linalg.qr(matrix.T)                          # matrix = rᵀ qᵀ
+    solutions = q @ solve_triangular(r, openings, trans="T")   # x = q r⁻ᵀ b, minimum norm
+    return solutions[:-1].T.reshape(len(contacts), -1, result.d)
 
 
 def test_opening_response_matches_least_squares_and_carries_the_forces(jammed):
@@ -207,8 +212,9 @@ def test_opening_response_matches_least_squares_and_carries_the_forces(jammed):
     np.testing.assert_allclose(-response.inflation * np.sum(jammed.forces * sigma),
                                jammed.forces, rtol=1e-8)
     stable = np.flatnonzero(~jammed.rattlers)
-    for contact in (0, m // 2, int(np.argmax(response.share)), int(np.argmin(response.share))):
-        squared = (_opening_by_least_squares(jammed, contact) ** 2).sum(axis=1)
+    checked = [0, m // 2, int(np.argmax(response.share)), int(np.argmin(response.share))]
+    for contact, moves in zip(checked, _openings_by_least_squares(jammed, checked)):
+        squared = (moves ** 2).sum(axis=1)
         assert response.share[contact] == pytest.approx(squared.max() / squared.sum(), rel=1e-6)
         assert response.mover[contact] == stable[np.argmax(squared)]
     assert response.reciprocal_condition > 1e3 * response.share.size * np.finfo(float).eps

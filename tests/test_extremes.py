@@ -91,8 +91,10 @@ def test_nearly_jammed_ls_input(nearly_jammed, nearly_jammed_result):
 
 # ----------------------------------------------------------------------------- 2. far from jamming
 
-@pytest.mark.parametrize("d, n", [(3, 128), (4, 128)])
+@pytest.mark.parametrize("d, n", [(3, 64), (4, 64)])
 def test_far_from_jamming(d, n):
+    """φ0 = 0.3 φ_J: 30 to 60 LPs to a jammed packing near φ_J (larger N in
+    tests/test_extremes_slow.py)."""
     start = random_sequential_addition(n, d, 0.3 * phi_j(d), seed=d)
     result = jam(start)
     assert_jammed(result)

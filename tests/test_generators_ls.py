@@ -32,9 +32,9 @@ def test_import_does_not_pull_lp_solvers():
 
 @pytest.mark.parametrize("d, n, make, phi_range", [
     (2, 256, lambda n: dist.bidisperse(n, 1.4, 0.5, seed=3), (0.80, 0.86)),
-    (3, 500, dist.monodisperse, (0.62, 0.66)),
-    (4, 256, dist.monodisperse, (0.43, 0.49)),
-    (5, 256, dist.monodisperse, (0.28, 0.34)),
+    (3, 256, dist.monodisperse, (0.62, 0.66)),
+    (4, 128, dist.monodisperse, (0.43, 0.49)),
+    (5, 128, dist.monodisperse, (0.28, 0.34)),
 ])
 def test_ls_reaches_target_pressure_without_overlap(d, n, make, phi_range):
     diameters = make(n)
