@@ -1,5 +1,5 @@
 """Small test configurations, built without the generators (so core tests stay independent),
-except `ls_packing`, which imports them when called."""
+except `ls_packing` and `mls_start`, which import them when called."""
 
 from __future__ import annotations
 
@@ -79,3 +79,14 @@ def ls_packing(n: int, d: int, seed: int, pressure: float = 1e12) -> Packing:
 def phi_j(d: int) -> float:
     """Typical jamming density of monodisperse spheres (d = 3, 4, 5)."""
     return {3: 0.64, 4: 0.46, 5: 0.31}[d]
+
+
+#: Arguments of the MLS run shared by the generator tests (`mls_jammed` in conftest.py).
+MLS_ARGS = dict(max_pressure=1e9, final_rate=1e-3, seed=6)
+
+
+def mls_start() -> Packing:
+    """The start of that MLS run: 64 Poisson points in d = 3 at φ = 0.3."""
+    import generators
+
+    return generators.poisson(generators.diameters.monodisperse(64), 3, phi=0.3, seed=6)

@@ -56,6 +56,16 @@ def nearly_jammed():
 
 
 @pytest.fixture(scope="session")
+def mls_jammed():
+    """The MLS (closest-jamming) run of `configurations.mls_start` with `MLS_ARGS`, made once
+    for the session (~4 s)."""
+    import generators
+    from configurations import MLS_ARGS, mls_start
+
+    return generators.closest_jamming(mls_start(), **MLS_ARGS)
+
+
+@pytest.fixture(scope="session")
 def shared_data() -> Path:
     """The folder of real packings made by other codes (skips the test if absent)."""
     if not SHARED_DATA.is_dir():

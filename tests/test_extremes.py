@@ -127,7 +127,7 @@ def test_one_to_five_bidisperse_mixture():
 # ----------------------------------------------------------------------------- 4. 2-d mixture
 
 def test_two_dimensional_50_50_mixture_ratio_1_4():
-    start = random_sequential_addition(256, 2, 0.5, seed=4, diameters=bidisperse(256, 1.4))
+    start = random_sequential_addition(128, 2, 0.5, seed=4, diameters=bidisperse(128, 1.4))
     result = jam(start)
     assert_jammed(result)
     assert 0.82 < result.phi < 0.85

@@ -22,12 +22,9 @@ from generators.checkpoint import Checkpoint
 
 REPO = Path(__file__).resolve().parents[1]
 
+from configurations import MLS_ARGS, mls_start
+
 LS_ARGS = dict(d=3, target_pressure=1e12, growth_rate=1e-2, seed=5)
-MLS_ARGS = dict(max_pressure=1e9, final_rate=1e-3, seed=6)
-
-
-def mls_start():
-    return generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=6)
 
 
 def assert_same(a, b) -> None:
@@ -67,8 +64,8 @@ CHILD = textwrap.dedent("""
         generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
                                           checkpoint_every=0, **{ls})
     else:
-        start = generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=6)
-        generators.closest_jamming(start, checkpoint=path, checkpoint_every=0, **{mls})
+        from configurations import mls_start
+        generators.closest_jamming(mls_start(), checkpoint=path, checkpoint_every=0, **{mls})
 """).format(ls=repr(LS_ARGS), mls=repr(MLS_ARGS))
 
 
@@ -77,7 +74,8 @@ def run_and_kill(kind: str, path: Path, windows: int) -> int:
 
     Returns the number of windows in the checkpoint left behind.
     """
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    path_entries = [str(REPO), str(REPO / "tests"), os.environ.get("PYTHONPATH", "")]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(path_entries)}
     child = subprocess.Popen([sys.executable, "-c", CHILD, kind, str(path)], env=env,
                              stderr=subprocess.PIPE)
     target = path.with_name(path.name + ".npz")
@@ -111,8 +109,8 @@ def ls_reference():
 
 
 @pytest.fixture(scope="module")
-def mls_reference():
-    return generators.closest_jamming(mls_start(), **MLS_ARGS)
+def mls_reference(mls_jammed):
+    return mls_jammed
 
 
 def test_ls_killed_with_sigkill_resumes_bit_for_bit(tmp_path, ls_reference):
@@ -128,6 +126,7 @@ def test_ls_killed_with_sigkill_resumes_bit_for_bit(tmp_path, ls_reference):
 
 
 def test_mls_killed_with_sigkill_resumes_bit_for_bit(tmp_path, mls_reference):
+    """... and once finished, the run returns from its checkpoint without recomputing."""
     path = tmp_path / "mls_run"
     # late enough to be past the first pressure threshold (in the rate-decrease phase)
     saved = run_and_kill("mls", path, windows=60)
@@ -137,6 +136,9 @@ def test_mls_killed_with_sigkill_resumes_bit_for_bit(tmp_path, mls_reference):
     assert_same(resumed, mls_reference)
     assert resumed.status.startswith("jammed")
     assert_no_overlap(resumed.packing)
+    again = generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
+    assert again.extra["resumed"]
+    assert_same(again, mls_reference)
 
 
 def test_finished_run_returns_from_its_checkpoint(tmp_path, ls_reference):
@@ -148,15 +150,6 @@ def test_finished_run_returns_from_its_checkpoint(tmp_path, ls_reference):
     assert again.extra["resumed"]
     assert_same(again, ls_reference)
     assert again.collisions == first.collisions  # nothing was recomputed
-
-
-def test_finished_mls_run_returns_from_its_checkpoint(tmp_path, mls_reference):
-    path = tmp_path / "mls_done.npz"
-    first = generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
-    again = generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
-    assert again.extra["resumed"]
-    assert_same(first, mls_reference)
-    assert_same(again, mls_reference)
 
 
 def test_ls_run_can_be_pushed_to_a_higher_pressure(tmp_path, ls_reference):

@@ -10,11 +10,13 @@ import generators
 from calippso.neighbors import min_gap
 from generators import diameters as dist
 
+from configurations import mls_start
+
 
 @pytest.fixture(scope="module")
-def jammed():
-    start = generators.poisson(dist.monodisperse(128), 3, phi=0.3, seed=4)
-    return start, generators.closest_jamming(start, max_pressure=1e9, final_rate=1e-3, seed=4)
+def jammed(mls_jammed):
+    """N = 64 in d = 3 from φ = 0.3, to p = 1e9 at a final rate of 1e-3 (conftest.py)."""
+    return mls_start(), mls_jammed
 
 
 def test_mls_jams_without_overlap(jammed):
@@ -24,7 +26,7 @@ def test_mls_jams_without_overlap(jammed):
     packing = result.packing
     gap, overlapping = min_gap(packing.positions, packing.diameters, packing.box)
     assert overlapping == 0 and gap >= -1e-12
-    assert 0.60 < packing.phi < 0.66  # N = 128: wide finite-size range around 0.63–0.64
+    assert 0.60 < packing.phi < 0.66  # N = 64: wide finite-size range around 0.63–0.64
     np.testing.assert_array_equal(packing.box, start.box)
 
 
