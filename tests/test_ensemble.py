@@ -18,6 +18,16 @@ from calippso.cli import cli, main
 SPEC = {"protocol": "ls", "n": 24, "d": 2, "distribution": "bidisperse"}
 
 
+@pytest.fixture
+def local_threads(monkeypatch):
+    """Local workers run as threads instead of spawned processes (a spawned worker starts a
+    fresh interpreter, ~2 s), for the tests whose point is not the processes."""
+    def threads(max_workers, mp_context=None):
+        return concurrent.futures.ThreadPoolExecutor(max_workers)
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", threads)
+
+
 def _table(out_dir):
     with open(out_dir / ensemble.SUMMARY, newline="") as stream:
         return list(csv.DictReader(stream))
@@ -94,7 +104,7 @@ def test_unreachable_scheduler_is_named(tmp_path):
         ensemble.run_on_scheduler(SPEC, 1, address="tcp://127.0.0.1:1", out_dir=tmp_path, timeout=1)
 
 
-def test_cli_json_summary_and_spec_checks(tmp_path, capfd):
+def test_cli_json_summary_and_spec_checks(tmp_path, capfd, local_threads):
     code = main(
         [
             "ensemble",
@@ -126,7 +136,7 @@ def test_cli_json_summary_and_spec_checks(tmp_path, capfd):
         ensemble.run(SPEC, 3, seeds=[1, 2], out_dir=tmp_path)
 
 
-def test_ls_starts_with_a_slow_end_jam_in_a_few_lps(tmp_path):
+def test_ls_starts_with_a_slow_end_jam_in_a_few_lps(tmp_path, local_threads):
     spec = {"protocol": "ls", "n": 128, "d": 3, "pressure": 1e6, "final_growth_rate": 1e-3}
     rows = ensemble.run(spec, 1, seeds=[2], out_dir=tmp_path, workers=1)
     assert rows[0]["state"] == "done"
@@ -162,7 +172,7 @@ def test_folder_remembers_its_spec_and_refuses_another(tmp_path):
     threads.shutdown()
 
 
-def test_cli_refuses_a_rerun_with_other_parameters(tmp_path, capfd):
+def test_cli_refuses_a_rerun_with_other_parameters(tmp_path, capfd, local_threads):
     folder = tmp_path / "ens"
     args = ["ensemble", "--protocol", "poisson", "--n", "16", "--d", "2", "--workers", "1",
             "-o", str(folder), "--quiet"]
