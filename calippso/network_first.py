@@ -6,7 +6,8 @@ few, or a few pairs off the jammed network). Each round
 
 1. keeps the candidate pairs with a positive multiplier at the optimum of the CALiPPSO LP
    restricted to them (`calippso.restricted_lp`): an isostatic network;
-2. solves its contact equations from the input by Newton (`calippso.newton`);
+2. solves its contact equations by Newton (`calippso.newton`), from the input in the
+   first round and from the previous round's jamming point after that;
 3. accepts the network when every force is positive and no other pair of stable particles
    overlaps at that jamming point. Otherwise the next round reads the candidates at that
    point (the pairs within `near_gap` of contact: the network, the pairs that overlap, those
@@ -23,7 +24,7 @@ test) before it ends a run with no LP.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,6 +32,7 @@ from .contacts import isostaticity_gap, remove_rattlers
 from .neighbors import NeighborSearch, Pairs
 from .network_guess import CANDIDATE_GAP, Candidate
 from .newton import Refinement, refine_isostatic
+from .packing import minimum_image
 from .restricted_lp import TOO_FEW, lp_network
 
 __all__ = ["MAX_ROUNDS", "SettledNetwork", "settle_candidate"]
@@ -66,7 +68,8 @@ class SettledNetwork:
     largest_gap : float
         Largest relative gap among the contacts at the input.
     refinement : Refinement
-        The Newton solution from the input (positions, diameters, forces).
+        The Newton solution (positions, diameters, forces), its growth and largest
+        displacement measured from the input.
     """
 
     i: np.ndarray
@@ -115,7 +118,7 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate,
         i, j = pairs.i[closed][kept], pairs.j[closed][kept]
         if isostaticity_gap(i.shape[0], int(n - rattlers.sum()), d) != 0:
             return None, "the restricted LP's network is not isostatic"
-        refined = refine_isostatic(search.positions, search.diameters, search.box, i, j,
+        refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
                                    ~rattlers)
         if refined is None:
             return None, "Newton did not converge or the Jacobian is singular"
@@ -124,10 +127,22 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate,
         if refined.positive and not _overlaps_outside(near, i, j, rattlers).any():
             gaps = search.pairs_of(i, j).gaps
             return SettledNetwork(i, j, rattlers, candidate.source, round_number, opened,
-                                  float(gaps.max(initial=0.0)), refined), ""
+                                  float(gaps.max(initial=0.0)),
+                                  _from_input(refined, search, rattlers)), ""
         failure = "a non-positive force" if not refined.positive else "an overlap"
         base, pairs = current.pairs_of(i, j), near
     return None, f"not settled in {MAX_ROUNDS} rounds ({failure})"
+
+
+def _from_input(refined: Refinement, search: NeighborSearch,
+                rattlers: np.ndarray) -> Refinement:
+    """`refined` with its growth and largest displacement measured from the input (a later
+    round starts from the previous round's jamming point)."""
+    stable = ~rattlers
+    moved = minimum_image(refined.positions[stable] - search.positions[stable], search.box)
+    growth = float(np.mean(refined.diameters / search.diameters)) - 1.0
+    return replace(refined, sqrt_gamma_minus_1=growth,
+                   max_displacement=float(np.abs(moved).max(initial=0.0)))
 
 
 def _near_pairs(search: NeighborSearch, near_gap: float) -> Pairs:
