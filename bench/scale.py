@@ -12,14 +12,17 @@ pressure --pressure, then `jam`. `--generator quench`: the soft-sphere quench
     python bench/scale.py --cases 4:1024 --set interior_point=hipo   # further jam options
     python bench/scale.py --from-json a.json b.json --plot docs/images/scale.png
     python bench/scale.py --generator quench --cases 3:1024 3:4096 3:16384 --json quench.json
+    python bench/scale.py --generator quench --quench-pressure 1e-6 --cases 4:1024
 
 With --from-json no case is run: the rows are read back (later files win for the same N, d),
 printed, and with --plot drawn as wall time and LPs against N on log-log axes, with the
 fitted exponent of the wall time over the d = 3 rows.
 
 Columns: N, d, seconds to generate the input (0 when read from --cache), LPs, rows of the
-largest LP, total wall time of `jam` (s), wall time per LP, share of it inside the LP solver,
-peak RSS (MB), phi_J, isostatic, force balance.
+largest LP (candidate pairs when no LP ran), total wall time of `jam` (s), wall time per LP,
+both (make + jam, s), share of the jam time inside the LP solver, peak RSS (MB), phi_J,
+isostatic, force balance, smallest relative gap of the result (≥ −1e-12: no overlap).
+The growth exponents of the jam and end-to-end times over the d = 3 rows close the table.
 A case that exceeds --timeout is reported as such.
 """
 
@@ -39,9 +42,11 @@ CHILD = textwrap.dedent("""
     import json, os, resource, sys, time
     import numpy as np
     import calippso
+    from calippso.neighbors import pairs_within
     d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
-    options, generator = json.loads(sys.argv[5]), sys.argv[6]
-    name = f"ls_d{d}_n{n}_p{pressure:g}" if generator == "ls" else f"quench_d{d}_n{n}"
+    options, generator, quench_pressure = json.loads(sys.argv[5]), sys.argv[6], float(sys.argv[7])
+    name = (f"ls_d{d}_n{n}_p{pressure:g}" if generator == "ls"
+            else f"quench_d{d}_n{n}_p{quench_pressure:g}")
     path = os.path.join(cache, f"{name}_seed1.npz") if cache else ""
     clock = time.perf_counter()
     if path and os.path.exists(path):
@@ -56,7 +61,7 @@ CHILD = textwrap.dedent("""
             made = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
                                                      seed=1)
         else:
-            made = generators.soft_quench(sizes, d, seed=1)
+            made = generators.soft_quench(sizes, d, seed=1, target_pressure=quench_pressure)
         start, network = made.packing, getattr(made, "contacts", None)
         generate = time.perf_counter() - clock
         if path:
@@ -67,23 +72,28 @@ CHILD = textwrap.dedent("""
     result = calippso.jam(start, network=network, **options)
     total = time.perf_counter() - clock
     history = result.history
+    packing = result.packing
+    smallest_gap = float(pairs_within(packing.positions, packing.diameters, packing.box,
+                                      1.01 * packing.diameters.max()).gaps.min())
     print(json.dumps({
         "n": n, "d": d, "generator": generator, "generate": generate,
         "lps": result.iterations, "rows": int(history["rows"].max()),
         "total": total, "solver": float(history["solver_time"].sum()),
         "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "phi": result.phi, "isostatic": result.isostatic,
-        "balance": result.force_balance, "converged": result.converged}))
+        "balance": result.force_balance, "converged": result.converged,
+        "min_gap": smallest_gap}))
 """)
 
 
 def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "",
-             options: dict | None = None, generator: str = "ls") -> dict:
+             options: dict | None = None, generator: str = "ls",
+             quench_pressure: float = 1e-7) -> dict:
     """Generate (or read from `cache`) and jam one input in a subprocess with the jam
     `options`; the row as a dict."""
     try:
         done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache,
-                               json.dumps(options or {}), generator],
+                               json.dumps(options or {}), generator, str(quench_pressure)],
                               capture_output=True, text=True, timeout=timeout, check=True)
     except subprocess.TimeoutExpired:
         return {"n": n, "d": d, "timeout": timeout}
@@ -99,21 +109,24 @@ def format_row(row: dict) -> str:
     if "error" in row:
         return f"{head}  error: {row['error']}"
     per_lp = row["total"] / max(row["lps"], 1)
+    both = row.get("generate", float("nan")) + row["total"]
     return (f"{head} {row.get('generate', float('nan')):>9.1f} {row['lps']:>4} {row['rows']:>8} "
-            f"{row['total']:>9.1f} {per_lp:>7.2f} "
+            f"{row['total']:>9.1f} {per_lp:>7.2f} {both:>9.1f} "
             f"{row['solver'] / row['total']:>7.1%} {row['rss_mb']:>8.0f} {row['phi']:>11.8f} "
-            f"{'yes' if row['isostatic'] else 'NO':>4} {row['balance']:>8.1e}")
+            f"{'yes' if row['isostatic'] else 'NO':>4} {row['balance']:>8.1e} "
+            f"{row.get('min_gap', float('nan')):>9.1e}")
 
 
-def growth_exponent(rows: list[dict]) -> float | None:
-    """Least-squares slope of log(total time) against log(N) over the finished d = 3 rows."""
+def growth_exponent(rows: list[dict], end_to_end: bool = False) -> float | None:
+    """Least-squares slope of log(time) against log(N) over the finished d = 3 rows: the wall
+    time of `jam`, or with `end_to_end` that of making the input and jamming it."""
     import numpy as np
 
     done = [row for row in rows if row["d"] == 3 and "total" in row]
     if len(done) < 2:
         return None
-    return float(np.polyfit(np.log([r["n"] for r in done]), np.log([r["total"] for r in done]),
-                            1)[0])
+    times = [r["total"] + (r.get("generate", 0.0) if end_to_end else 0.0) for r in done]
+    return float(np.polyfit(np.log([r["n"] for r in done]), np.log(times), 1)[0])
 
 
 def plot(rows: list[dict], path: str) -> None:
@@ -144,9 +157,18 @@ def plot(rows: list[dict], path: str) -> None:
 
 def print_rows(rows: list[dict]) -> None:
     print(f"{'N':>6} {'d':>2} {'make s':>9} {'LPs':>4} {'rows':>8} {'jam s':>9} {'s/LP':>7} "
-          f"{'solver':>7} {'RSS MB':>8} {'phi_J':>11} {'iso':>4} {'balance':>8}", flush=True)
+          f"{'both s':>9} {'solver':>7} {'RSS MB':>8} {'phi_J':>11} {'iso':>4} {'balance':>8} "
+          f"{'min gap':>9}", flush=True)
     for row in rows:
         print(format_row(row), flush=True)
+
+
+def print_exponents(rows: list[dict]) -> None:
+    """The d = 3 growth exponents of the jam and end-to-end wall times, when there are any."""
+    for label, end_to_end in (("jam", False), ("make + jam", True)):
+        slope = growth_exponent(rows, end_to_end)
+        if slope is not None:
+            print(f"d = 3 wall-time exponent of {label} (log-log fit): {slope:.2f}")
 
 
 def read_rows(paths: list[str]) -> list[dict]:
@@ -165,6 +187,8 @@ def main() -> None:
     parser.add_argument("--pressure", type=float, default=1e5)
     parser.add_argument("--generator", choices=["ls", "quench"], default="ls",
                         help="LS to --pressure, or the soft-sphere quench (network first)")
+    parser.add_argument("--quench-pressure", type=float, default=1e-7,
+                        help="target_pressure of the soft-sphere quench")
     parser.add_argument("--timeout", type=float, default=3600.0, help="seconds per case")
     parser.add_argument("--json", help="also write the rows to this JSON file")
     parser.add_argument("--cache", default="", help="folder where LS inputs are kept and reused")
@@ -179,9 +203,7 @@ def main() -> None:
     if args.from_json:
         rows = read_rows(args.from_json)
         print_rows(rows)
-        slope = growth_exponent(rows)
-        if slope is not None:
-            print(f"d = 3 wall-time exponent (log-log fit): {slope:.2f}")
+        print_exponents(rows)
         if args.plot:
             plot(rows, args.plot)
         return
@@ -190,11 +212,12 @@ def main() -> None:
     for case in args.cases:
         d, n = (int(v) for v in case.split(":"))
         rows.append(run_case(d, n, args.pressure, args.timeout, args.cache, options,
-                             args.generator))
+                             args.generator, args.quench_pressure))
         print(format_row(rows[-1]), flush=True)
         if args.json:
             with open(args.json, "w") as stream:
                 json.dump(rows, stream, indent=1)
+    print_exponents(rows)
     if args.plot:
         plot(rows, args.plot)
 
