@@ -55,7 +55,7 @@ CHILD = textwrap.dedent("""
     window = GrowingSpheres.window
     def paced(self, *args, **kwargs):
         pressure = window(self, *args, **kwargs)
-        time.sleep(0.05)
+        time.sleep(0.01)
         return pressure
     GrowingSpheres.window = paced
 
@@ -165,7 +165,7 @@ def test_ls_run_can_be_pushed_to_a_higher_pressure(tmp_path, ls_reference):
 def test_ls_slow_end_staged_through_its_slowdown_is_the_direct_run(tmp_path):
     """Stopped before the slowdown pressure and continued past it, a slow-end run is the run
     made directly; the slow rate is part of the run's identity."""
-    slow_end = {**LS_ARGS, "target_pressure": 1e6, "final_growth_rate": 1e-3,
+    slow_end = {**LS_ARGS, "target_pressure": 1e4, "final_growth_rate": 1e-3,
                 "slowdown_pressure": 1e3}
     direct = generators.lubachevsky_stillinger(dist.monodisperse(64), **slow_end)
     path = tmp_path / "slow_end"
