@@ -10,7 +10,7 @@ from dataclasses import dataclass, fields, replace
 
 from .solvers.registry import backend_names, check_backend_name
 
-__all__ = ["JamSettings"]
+__all__ = ["JamSettings", "SOLVERS"]   # SOLVERS: deprecated, see __getattr__
 
 #: Values accepted by ``jam(..., network_first=...)``.
 NETWORK_FIRST_MODES = ("auto", "off", "require")
@@ -56,7 +56,8 @@ class JamSettings:
         Input overlaps up to this relative gap (h > −overlap_tolerance) are round-off and
         accepted; larger ones raise ValueError.
     feasibility_tolerance : float
-        Primal and dual feasibility tolerances passed to the solver (rows are in mean diameters).
+        Primal and dual feasibility tolerances of HiGHS (`solvers.highs.HighsOptions`; rows
+        are in mean diameters). Clarabel and cvxpy use `solvers.clarabel.ClarabelOptions`.
     balance_tolerance : float
         A final force clean-up LP is solved when the force balance is worse than this.
     newton : bool
