@@ -136,14 +136,6 @@ def test_cli_json_summary_and_spec_checks(tmp_path, capfd, local_threads):
         ensemble.run(SPEC, 3, seeds=[1, 2], out_dir=tmp_path)
 
 
-def test_ls_starts_with_a_slow_end_jam_in_a_few_lps(tmp_path, local_threads):
-    spec = {"protocol": "ls", "n": 128, "d": 3, "pressure": 1e6, "final_growth_rate": 1e-3}
-    rows = ensemble.run(spec, 1, seeds=[2], out_dir=tmp_path, workers=1)
-    assert rows[0]["state"] == "done"
-    row = _table(tmp_path)[0]
-    assert row["isostatic"] == "True" and int(row["iterations"]) <= 5
-
-
 def test_folder_remembers_its_spec_and_refuses_another(tmp_path):
     threads = concurrent.futures.ThreadPoolExecutor(1)
     previous = os.umask(0o027)
