@@ -20,3 +20,10 @@ def test_jam_loads_only_the_chosen_backend():
     loaded = _modules_after("import calippso; calippso.jam")
     assert "numba" not in loaded
     assert not loaded & {"highspy", "clarabel", "cvxpy"}  # backends load on first solve
+
+
+def test_backend_names_are_checked_without_loading_a_backend():
+    """Settings validate backend names against the registry, which imports no LP library."""
+    loaded = _modules_after("from calippso.settings import JamSettings; "
+                            "JamSettings(solver='clarabel', fallback_solvers=('cvxpy',))")
+    assert not loaded & {"numba", "highspy", "clarabel", "cvxpy"}
