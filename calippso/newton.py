@@ -258,9 +258,10 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
 def _self_stress(factors: Factors, jacobian: sp.csc_matrix) -> np.ndarray | None:
     """The solution y of Jᵀ y = (0, …, 0, −1), from factors of a nearby Jacobian.
 
-    Iterative refinement: y ← y + F⁻ᵀ (b − Jᵀ y) with F the given factors, until the
-    residual is below `REFINEMENT_TOLERANCE` × (|Jᵀ| |y| + |b|) (a backward error of a few
-    units of round-off, as a factorisation of J itself would give). When that takes more
+    Iterative refinement: y ← y + F⁻ᵀ (b − Jᵀ y) with F the given factors, until every
+    row of the residual is below `REFINEMENT_TOLERANCE` × that row of |Jᵀ| |y| + |b| (a
+    componentwise backward error of a few units of round-off, as a factorisation of J
+    itself would give: each particle balanced to round-off of its own forces). When that takes more
     than `MAX_REFINEMENTS` steps, J itself is factorised. None when J is singular.
     """
     target = np.zeros(jacobian.shape[0])
@@ -272,8 +273,8 @@ def _self_stress(factors: Factors, jacobian: sp.csc_matrix) -> np.ndarray | None
         if not np.all(np.isfinite(stress)):
             break
         remainder = target - transposed @ stress
-        scale = float((magnitudes @ np.abs(stress)).max()) + 1.0
-        if float(np.abs(remainder).max()) <= REFINEMENT_TOLERANCE * scale:
+        scale = magnitudes @ np.abs(stress) + np.abs(target)   # row by row: force units
+        if np.all(np.abs(remainder) <= REFINEMENT_TOLERANCE * scale):
             return stress
         stress = stress + factors.solve(remainder, trans="T")
     exact = factorize(jacobian)

@@ -19,7 +19,8 @@ where y_c = μ_c σ_c² / (2 |r_c|) is the LP multiplier μ_c of contact c resca
 set has dimension k only. With a basis B of n rows whose square block J_B is non-singular,
 every feasible y is y_p + Z λ: y_p = (J_B⁻ᵀ b, 0) and one column of Z per excess row e,
 (−J_B⁻ᵀ J_eᵀ, 1 at e). One sparse LU of J_B (`calippso.sparse_lu`) and k + 1 solves turn
-the problem into a dense LP in k variables, which HiGHS solves in milliseconds. At its
+the problem into a dense LP in k variables, which HiGHS solves by cutting planes (only the
+rows that can reach zero). At its
 vertex, k rows have y = 0: those contacts open, and the others form an isostatic network
 whose forces are positive. The Newton stage and its certificate then decide, as for any
 guessed network.
@@ -38,14 +39,21 @@ from .sparse_lu import factorize
 
 __all__ = ["MAX_OPEN_CONTACTS", "TOO_FEW", "TOO_MANY", "lp_network"]
 
-#: Largest excess k solved: the dense LP holds M × k numbers (M ~ d N contacts), and a
-#: candidate network that far from isostatic is a crystal or a compressed state, not a
-#: near-jammed one.
-MAX_OPEN_CONTACTS = 256
+#: Largest excess k solved: the null-space directions are M × k numbers (M ~ d N contacts;
+#: 200 MB at N = 16384 in d = 3), and a candidate network that far from isostatic is a
+#: crystal or a compressed state, not a near-jammed one.
+MAX_OPEN_CONTACTS = 512
 #: Feasibility and optimality tolerances of the dense LP, with the forces scaled to a mean
 #: of one: far below the smallest contact forces of a jammed packing (~1e-4 of the mean at
 #: N ~ 10⁴) and far above round-off.
 LP_TOLERANCE = 1e-10
+#: The first cutting-plane LP holds this many basis rows per excess row, and at least
+#: `MIN_FIRST_ROWS`; rows that its solution drives negative (below −`CUT_TOLERANCE`, with
+#: multipliers of mean one) are added, for at most `MAX_CUTS` LPs.
+ROWS_PER_EXCESS = 16
+MIN_FIRST_ROWS = 512
+CUT_TOLERANCE = 1e-9
+MAX_CUTS = 20
 #: Failures of `lp_network`: the pairs hold no positive self-stress, or too many pairs.
 TOO_FEW = "no positive self-stress on the candidate pairs"
 TOO_MANY = f"more than {MAX_OPEN_CONTACTS} candidate pairs beyond an isostatic network"
@@ -120,6 +128,9 @@ def _optimal_multipliers(jacobian: sp.csr_matrix, basis: np.ndarray,
     """The optimal y of the restricted dual (module doc), scaled to a mean of one, shape (M,).
 
     `gaps` are the relative gaps h_c; the objective weights |r_c|²/σ_c² − 1 = h_c (2 + h_c).
+    The dense LP in λ (the excess multipliers, 0 ≤ λ ≤ M since Σ y = M) is solved by cutting
+    planes: first with the `_first_rows` basis rows likeliest to reach zero, then with every
+    row its solution violates added, until none does.
     """
     m, n_unknowns = jacobian.shape
     factors = factorize(jacobian[basis].tocsc())
@@ -133,17 +144,32 @@ def _optimal_multipliers(jacobian: sp.csr_matrix, basis: np.ndarray,
     solved = np.asarray(factors.solve(right, trans="T")).reshape(n_unknowns, -1)
     if not np.all(np.isfinite(solved)):
         return None
-    particular = np.zeros(m)
-    particular[basis] = solved[:, 0]
-    directions = np.zeros((m, excess_rows.size))
-    directions[basis] = -solved[:, 1:]
-    directions[excess_rows, np.arange(excess_rows.size)] = 1.0
+    particular, directions = solved[:, 0], -solved[:, 1:]   # y on the basis rows
     weights = gaps * (2.0 + gaps)
-    scale = float(np.abs(weights).max()) or 1.0
-    result = linprog(directions.T @ (weights / scale), A_ub=-directions, b_ub=particular,
-                     bounds=(None, None), method="highs",
-                     options={"primal_feasibility_tolerance": LP_TOLERANCE,
-                              "dual_feasibility_tolerance": LP_TOLERANCE})
-    if result.status != 0:
-        return None
-    return particular + directions @ result.x
+    weights = weights / (float(np.abs(weights).max()) or 1.0)
+    cost = weights[basis] @ directions + weights[excess_rows]
+    # the rows likeliest to bind: small multipliers that the directions can cancel
+    reach = np.abs(directions).max(axis=1) + np.finfo(float).tiny
+    rows = np.argsort(particular / reach, kind="stable")[:_first_rows(excess_rows.size)]
+    for _ in range(MAX_CUTS):
+        result = linprog(cost, A_ub=-directions[rows], b_ub=particular[rows],
+                         bounds=(0.0, float(m)), method="highs",
+                         options={"primal_feasibility_tolerance": LP_TOLERANCE,
+                                  "dual_feasibility_tolerance": LP_TOLERANCE})
+        if result.status != 0:
+            return None   # infeasible on a subset of the rows: infeasible
+        on_basis = particular + directions @ result.x
+        violated = np.flatnonzero(on_basis < -CUT_TOLERANCE)
+        if violated.size == 0:
+            multipliers = np.zeros(m)
+            multipliers[basis] = on_basis
+            multipliers[excess_rows] = result.x
+            return multipliers
+        rows = np.union1d(rows, violated)
+    return None
+
+
+def _first_rows(excess: int) -> int:
+    """Rows of the first cutting-plane LP: `ROWS_PER_EXCESS` per excess row, at least
+    `MIN_FIRST_ROWS`."""
+    return max(MIN_FIRST_ROWS, ROWS_PER_EXCESS * excess)
