@@ -37,7 +37,8 @@ from .rattlers import separate_rattlers
 from .result import JammingResult, history_from_records
 from .settings import JamSettings
 from .solvers import Basis, LPSolution
-from .solvers.policy import COLD_RESOLVE, FIRST, LPAttempt, attempt_plan, prepare_backends
+from .solvers.policy import (COLD_RESOLVE, FIRST, LPAttempt, attempt_plan, prepare_backends,
+                              solution_problem)
 
 __all__ = ["jam", "initial_step_bound", "next_step_bound"]
 
@@ -357,23 +358,6 @@ def _held_by_bound(lp: LinearProgram, solution: LPSolution) -> bool:
     return bool(np.any(np.abs(reduced[at_bound]) > BINDING_REDUCED_COST * largest))
 
 
-def _solution_problem(lp: LinearProgram, solution: LPSolution) -> str | None:
-    """Why a backend's answer cannot be used, or None when it passes the checks."""
-    if not solution.optimal:
-        return f"status '{solution.status}'"
-    if solution.x.shape[0] != lp.n_cols or solution.duals.shape[0] != lp.n_rows:
-        return "solution of the wrong size"
-    if not (np.all(np.isfinite(solution.x)) and np.all(np.isfinite(solution.duals))):
-        return "non-finite values in the solution"
-    violation = float(np.min(lp.matrix @ solution.x - lp.row_lower, initial=0.0))
-    if violation < -1e-7:
-        return f"rows violated by {-violation:.2e}"
-    normalization = float(solution.duals @ lp.gamma_coefficients)
-    if abs(normalization - 1.0) > 1e-6:
-        return f"dual normalisation sum(lambda sigma^2) = {normalization:.3e}, not 1"
-    return None
-
-
 class _Jammer:
     """State of one `jam` call (internal units: mean input diameter = 1)."""
 
@@ -505,7 +489,7 @@ class _Jammer:
             solution, failure = None, f"{type(error).__name__}: {error}"
             self.discarded_seconds += time.perf_counter() - began
         else:
-            failure = _solution_problem(lp, solution)
+            failure = solution_problem(lp, solution)
             if failure is not None:
                 self.discarded_seconds += solution.seconds
         if self.on_lp is not None:

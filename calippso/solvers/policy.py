@@ -1,14 +1,18 @@
-"""Which backend the loop asks, with which bound, and what it tells ``jam(..., on_lp=...)``.
+"""Which backend the loop asks, with which bound, which answers it takes, and what it tells
+``jam(..., on_lp=...)``.
 
 Every LP is tried by the chosen backend at the step bound, then at a quarter of it, then by
-each fallback backend in the same two ways (`attempt_plan`). The backends of a run are looked
-up, given their options and validated once, before any LP (`prepare_backends`).
+each fallback backend in the same two ways (`attempt_plan`), until an answer passes the checks
+of `solution_problem`. The backends of a run are looked up, given their options and validated
+once, before any LP (`prepare_backends`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from .backend import Backend
 from .base import Basis, LPSolution
@@ -19,11 +23,15 @@ if TYPE_CHECKING:
     from ..settings import JamSettings
 
 __all__ = ["Attempt", "LPAttempt", "PreparedBackend", "attempt_plan", "prepare_backends",
-           "RETRY_BOUND_DIVISOR"]
+           "solution_problem", "RETRY_BOUND_DIVISOR"]
 
 #: A retry solves the LP again with the step bound divided by this (fewer rows, a smaller
 #: and better conditioned problem).
 RETRY_BOUND_DIVISOR = 4.0
+#: An answer is refused when a pair row is violated by more than this (mean diameters).
+ROW_VIOLATION_TOLERANCE = 1e-7
+#: ... or when its duals miss the normalisation Σ λ σ² = 1 by more than this.
+DUAL_NORMALIZATION_TOLERANCE = 1e-6
 
 #: `Attempt.role` and `LPAttempt.role` values.
 FIRST, RETRY, FALLBACK, COLD_RESOLVE = "first", "retry", "fallback", "cold resolve"
@@ -57,6 +65,25 @@ def attempt_plan(solver: str, fallback_solvers: tuple[str, ...], step: float) ->
     plan += [Attempt(name, bound, FALLBACK) for name in fallback_solvers if name != solver
              for bound in (step, smaller)]
     return plan
+
+
+def solution_problem(lp: "LinearProgram", solution: LPSolution) -> str | None:
+    """Why a backend's answer to `lp` cannot be used, or None when it passes the checks:
+    optimal status, the right sizes, finite values, rows satisfied to
+    `ROW_VIOLATION_TOLERANCE`, duals normalised to `DUAL_NORMALIZATION_TOLERANCE`."""
+    if not solution.optimal:
+        return f"status '{solution.status}'"
+    if solution.x.shape[0] != lp.n_cols or solution.duals.shape[0] != lp.n_rows:
+        return "solution of the wrong size"
+    if not (np.all(np.isfinite(solution.x)) and np.all(np.isfinite(solution.duals))):
+        return "non-finite values in the solution"
+    violation = float(np.min(lp.matrix @ solution.x - lp.row_lower, initial=0.0))
+    if violation < -ROW_VIOLATION_TOLERANCE:
+        return f"rows violated by {-violation:.2e}"
+    normalization = float(solution.duals @ lp.gamma_coefficients)
+    if abs(normalization - 1.0) > DUAL_NORMALIZATION_TOLERANCE:
+        return f"dual normalisation sum(lambda sigma^2) = {normalization:.3e}, not 1"
+    return None
 
 
 @dataclass(frozen=True)
