@@ -28,20 +28,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import sys
 import time
 from pathlib import Path
 
-# bench/ holds a script named generators.py: take bench/ off the path so that `import
-# generators` finds the package, and put the repository root first.
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path[:] = [os.path.dirname(_HERE)] + [p for p in sys.path if os.path.abspath(p or ".") != _HERE]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-import calippso  # noqa: E402
-from calippso.neighbors import NeighborSearch  # noqa: E402
+import calippso
+from calippso.neighbors import NeighborSearch
 
 DEFAULT_TOLERANCES = ["1e-5:1e-3", "1e-7:1e-5", "1e-9:1e-7", "1e-12:1e-9"]
 ERRORS = {"min_gap_abs": "|min gap|", "force_balance": "force balance",
@@ -104,7 +97,7 @@ def table(rows: list[dict]) -> str:
 
 def plot(rows: list[dict], path: Path) -> list[Path]:
     """One figure per dimension: the four errors against wall time (0 drawn at 1e-17)."""
-    from calippso.reporting._matplotlib import pyplot
+    from calippso.reporting import pyplot
 
     plt = pyplot()
     written = []

@@ -21,11 +21,11 @@ from __future__ import annotations
 import argparse
 import ast
 import json
-import sys
 import time
 from pathlib import Path
 
 import calippso
+from common import random_sequential_addition
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 SHARED_INPUTS = ["skoge_donev_N1000_d3_p1e12.dat", "mono_N1000_fba1e-3_then_ls1e-2_seed11",
@@ -49,15 +49,6 @@ def ls_input(d: int, n: int, pressure: float, seed: int, start: str = "poisson",
         sizes = generators.force_biased(sizes, d, contraction_rate=1e-3, seed=seed).packing
     return generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure, seed=seed,
                                              final_growth_rate=final_growth_rate).packing
-
-
-def random_input(d: int, n: int, phi: float, seed: int) -> calippso.Packing:
-    """Random sequential addition of n monodisperse spheres at packing fraction `phi`
-    (the builder the tests use, tests/configurations.py)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from configurations import random_sequential_addition
-
-    return random_sequential_addition(n, d, phi, seed=seed)
 
 
 def parse_options(pairs: list[str]) -> dict:
@@ -146,7 +137,8 @@ def main() -> None:
                    for seed in args.seeds]
     for spec in args.random:
         d, n, phi = spec.split(":")
-        inputs.append((f"random d={d} phi0={phi}", random_input(int(d), int(n), float(phi), 1)))
+        inputs.append((f"random d={d} phi0={phi}",
+                       random_sequential_addition(int(n), int(d), float(phi), seed=1)))
     options = parse_options(args.set)
 
     print(f"{'input':<44} {'N':>6} {'d':>2} {'backend':>8} {'LPs':>4} {'total s':>8} "

@@ -1,10 +1,13 @@
 """Benchmark and validation sweep of the force-biased spherocylinder generator.
 
-    python bench/spherocylinders.py                      # wall time, N = 2000, γ = 0.4 and 10
-    python bench/spherocylinders.py sweep --seeds 0 1 --out sweep.json
-    python bench/spherocylinders.py sweep --n 3000 --gammas 20 --out g20.json --checkpoints ckpt
+    python bench/spherocylinders.py --json speed.json    # wall time, N = 2000, γ = 0.4 and 10
+    python bench/spherocylinders.py sweep --seeds 0 1 --json sweep.json
+    python bench/spherocylinders.py sweep --n 3000 --gammas 20 --json g20.json --checkpoints ckpt
     python bench/spherocylinders.py plot sweep.json [more.json …] --image docs/images/x.png
     python bench/spherocylinders.py pairs --n 3000 --gamma 20   # one pair-list build at the start
+
+`--json PATH` writes the rows to a JSON file; `sweep` keeps the rows already in it and adds
+each run's row as the run ends.
 
 Run long jobs under ``nice -n 10``. Wall times include Numba compilation only on a cold cache.
 """
@@ -13,18 +16,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from generators.spherocylinders import (force_biased, min_distance_ratio,  # noqa: E402
-                                        overlapping_pairs)
-from generators.spherocylinders.fb import (estimated_density,  # noqa: E402
-                                           rigid_body_eps_rot, start_density)
+from generators.spherocylinders import force_biased, min_distance_ratio, overlapping_pairs
+from generators.spherocylinders.fb import (estimated_density, rigid_body_eps_rot,
+                                           start_density)
 
 
 #: Label of the rows made with the default start.
@@ -64,13 +63,13 @@ def contact_alignment(packing, within: float = 0.01) -> float:
 
 
 def pair_list_timing(n: int, gamma: float, initial_density: float | None = None,
-                     repeats: int = 3) -> None:
+                     repeats: int = 3) -> dict:
     """Time `cells.pair_list` on a start (Poisson centres, random axes) at nominal density
-    `initial_density`, by default the generator's min(1.2, 12/γ)."""
+    `initial_density`, by default the generator's min(1.2, 12/γ); print and return the row."""
     import math
 
     from generators.spherocylinders.cells import pair_list
-    from generators.spherocylinders.fb import SKIN, _list_skin
+    from generators.spherocylinders.fb import SKIN, pair_list_skin
 
     d0 = np.full(n, (1.5 * gamma + 1.0) ** (-1.0 / 3.0))
     h0 = 0.5 * gamma * d0
@@ -80,7 +79,7 @@ def pair_list_timing(n: int, gamma: float, initial_density: float | None = None,
     positions = rng.uniform(0.0, box[0], (n, 3))
     axes = rng.normal(size=(n, 3))
     axes /= np.linalg.norm(axes, axis=1)[:, None]
-    skin = _list_skin(1.0, h0, d0, box, SKIN * float(d0.max()))
+    skin = pair_list_skin(1.0, h0, d0, box, SKIN * float(d0.max()))
     pair_list(positions[:50], axes[:50], h0[:50], d0[:50], box, skin)  # compile first
     times = []
     for _ in range(repeats):
@@ -89,14 +88,20 @@ def pair_list_timing(n: int, gamma: float, initial_density: float | None = None,
         times.append(time.perf_counter() - started)
     print(f"N = {n}, γ = {gamma:g}, η₀ = {eta0:g}: {len(pairs)} pairs, "
           f"best of {repeats} builds {min(times):.3f} s")
+    return {"n": n, "gamma": gamma, "initial_density_used": eta0, "pairs": len(pairs),
+            "repeats": repeats, "best_seconds": min(times)}
 
 
-def bench(n: int) -> None:
+def bench(n: int) -> list[dict]:
+    """Wall time of one packing at γ = 0.4 and at γ = 10 (seed 0): print and return the rows."""
     force_biased(100, 0.4, contraction_rate=1e-2)  # compile (or load the cache) first
+    rows = []
     for gamma in (0.4, 10.0):
         row = run_one(n, gamma, 0)
+        rows.append(row)
         print(f"N = {n}, γ = {gamma:4}: {row['wall_time']:7.1f} s, {row['steps']} steps, "
               f"φ = {row['phi']:.4f}, S = {row['S']:.3f}")
+    return rows
 
 
 def sweep(n: int, gammas: list[float], seeds: list[int], out: Path,
@@ -215,6 +220,8 @@ def main() -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command")
     parser.add_argument("--n", type=int, default=2000, help="particles (default 2000)")
+    parser.add_argument("--json", type=Path, default=None,
+                        help="write the rows of the default run or of `pairs` here")
     run = sub.add_parser("sweep")
     # the same option after the subcommand; SUPPRESS keeps a value given before it
     run.add_argument("--n", type=int, default=argparse.SUPPRESS, help="particles (default 2000)")
@@ -226,12 +233,14 @@ def main() -> None:
     run.add_argument("--initial-density", type=float, default=None,
                      help="nominal density of the start; default: min(1.2, 12/γ) if the box "
                           "allows it")
-    run.add_argument("--out", type=Path, required=True)
+    run.add_argument("--json", type=Path, required=True,
+                     help="JSON file of the rows; rows already in it are kept")
     run.add_argument("--checkpoints", type=Path, default=None,
                      help="folder for one checkpoint per run: a killed sweep resumes its run")
     pairs = sub.add_parser("pairs")
     pairs.add_argument("--n", type=int, default=5500)
     pairs.add_argument("--gamma", type=float, default=20.0)
+    pairs.add_argument("--json", type=Path, default=argparse.SUPPRESS, help="write the row here")
     pairs.add_argument("--initial-density", type=float, default=None,
                        help="nominal density of the start; default: min(1.2, 12/γ)")
     draw = sub.add_parser("plot")
@@ -239,15 +248,19 @@ def main() -> None:
     draw.add_argument("--image", type=Path, required=True)
     arguments = parser.parse_args()
     if arguments.command == "sweep":
-        sweep(arguments.n, arguments.gammas, arguments.seeds, arguments.out,
+        sweep(arguments.n, arguments.gammas, arguments.seeds, arguments.json,
               eps_rot=arguments.eps_rot, contraction_rate=arguments.contraction_rate,
               initial_density=arguments.initial_density, checkpoints=arguments.checkpoints)
-    elif arguments.command == "pairs":
-        pair_list_timing(arguments.n, arguments.gamma, arguments.initial_density)
-    elif arguments.command == "plot":
+        return
+    if arguments.command == "plot":
         plot(arguments.files, arguments.image)
+        return
+    if arguments.command == "pairs":
+        rows = [pair_list_timing(arguments.n, arguments.gamma, arguments.initial_density)]
     else:
-        bench(arguments.n)
+        rows = bench(arguments.n)
+    if arguments.json:
+        arguments.json.write_text(json.dumps(rows, indent=1))
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 """Reports: a summary JSON, PNG figures and a Markdown page for one run or an ensemble.
 
 `report` is exposed as `calippso.report`. matplotlib (the optional extra ``plot``) is
-imported only when a figure is drawn, on the Agg backend.
+imported only when a figure is drawn, on the Agg backend; `pyplot` gives that same headless
+``matplotlib.pyplot`` to other figures drawn beside the reports.
 """
 
 from __future__ import annotations
@@ -14,11 +15,13 @@ from ..analysis import analyze
 from ..analysis._inputs import as_results
 from ..analysis.gaps import DEFAULT_MAX_GAP
 from ..result import JammingResult
+from ._matplotlib import pyplot
 from .figures import plot_contact_numbers, plot_forces, plot_gaps, plot_history
 from .page import markdown
 from .summary import summary_dict, write_json
 
-__all__ = ["report", "plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history"]
+__all__ = ["report", "plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history",
+           "pyplot"]
 
 
 def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.PathLike, *,

@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
+from types import ModuleType
+
 __all__ = ["pyplot"]
 
 
-def pyplot():
+def pyplot() -> ModuleType:
     """`matplotlib.pyplot` on the non-interactive Agg backend.
+
+    Importing matplotlib is deferred to the first figure, and Agg draws to files without a
+    display, so that reports and benchmark figures work on a headless machine.
+
+    Returns
+    -------
+    ModuleType
+        The module ``matplotlib.pyplot``, its backend switched to Agg.
 
     Raises
     ------

@@ -51,7 +51,7 @@ from .cells import pair_list
 from .geometry import min_distance_ratio, minimum_image_component, segment_distance2
 from .packing import SpherocylinderPacking
 
-__all__ = ["default_initial_density", "estimated_density", "force_biased",
+__all__ = ["default_initial_density", "estimated_density", "force_biased", "pair_list_skin",
            "rigid_body_eps_rot", "start_density"]
 
 #: Verlet skin, in units of the largest nominal diameter.
@@ -513,7 +513,7 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
         top_two = np.partition(moved, n - 2)[n - 2:] if n >= 2 else moved
         if scale > list_scale or top_two.sum() >= list_skin:
             list_scale = scale
-            list_skin = _list_skin(scale, h0, d0, box, skin)
+            list_skin = pair_list_skin(scale, h0, d0, box, skin)
             pairs = pair_list(positions, axes, scale * h0, scale * d0, box, list_skin)
             overlaps = np.empty(pairs.shape[0], dtype=np.int64)
             moved[:] = 0.0
@@ -566,11 +566,32 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
                "seed": seed})
 
 
-def _list_skin(scale: float, h0: np.ndarray, d0: np.ndarray, box: np.ndarray,
-               skin: float) -> float:
-    """The Verlet skin of a new pair list (length units): `skin`, or the wider
-    `BRUTE_FORCE_SKIN` when the cells of `cells.pair_list` (side: longest reach plus `skin`)
-    would number fewer than 3 along a side, so that the list is built over all pairs."""
+def pair_list_skin(scale: float, h0: np.ndarray, d0: np.ndarray, box: np.ndarray,
+                   skin: float) -> float:
+    """The Verlet skin with which `force_biased` builds a new pair list.
+
+    `skin`, or the wider `BRUTE_FORCE_SKIN` when the cells of `cells.pair_list` (side: the
+    longest reach plus `skin`) would number fewer than 3 along a side, so that the list is
+    built over all pairs anyway and a wider skin means fewer builds.
+
+    Parameters
+    ----------
+    scale : float
+        Current scale of the particles (their sizes are `scale` × `h0`, `scale` × `d0`).
+    h0 : ndarray, shape (N,)
+        Nominal half-lengths of the cylinders (length units).
+    d0 : ndarray, shape (N,)
+        Nominal diameters (length units).
+    box : ndarray, shape (3,)
+        Periodic box sides (length units).
+    skin : float
+        The usual skin, `SKIN` × the largest nominal diameter (length units).
+
+    Returns
+    -------
+    float
+        The skin of the new list (length units).
+    """
     cell_side = scale * (2.0 * float(h0.max()) + float(d0.max())) + skin
     if np.floor(box.min() / cell_side) >= 3:
         return skin
