@@ -28,30 +28,26 @@ __all__ = ["soft_quench"]
 #: FIRE base time step, in units of √(m σ²/ε) for the smallest diameter σ, at d = 3. It is
 #: scaled by √(3/d) because the stiffest mode grows with the number of contacts (~2d).
 DT0_3D = 0.1
-#: Δt_max / Δt0. Bitzek et al. use 10; in the one-core prototype at φ = 0.70 (d = 3) FIRE
-#: then never converged (forces still 0.46 after 1e5 steps) while 5 converged in 1.8e3.
+# The measurements behind these values are in docs/notes/soft-quench-protocol.md.
+#: Δt_max / Δt0: half of Bitzek et al.'s 10, with which FIRE did not converge in dense packings.
 DT_MAX_FACTOR = 5.0
-#: Force tolerance of the intermediate minimisations, relative to the mean pair force. With
-#: the prototype's 1e-3 the last minimisation inherited more relaxation and took longer
-#: (d = 3, N = 1024, 3 seeds: 7.7e5 FIRE steps in all instead of 3.1e5).
+#: Force tolerance of the intermediate minimisations, relative to the mean pair force: a
+#: looser one leaves more relaxation to the last minimisation, the dearest.
 INTERMEDIATE_TOLERANCE = 1e-4
-#: Force floor of the convergence test, × machine epsilon × the box side: the round-off of
-#: the pair vectors (measured: N = 1024, d = 3, box 9.4 σ, p = 2.3e-8: forces converged to
-#: 2.3e-14 but never to 2.3e-15, 1.1 × eps × L).
+#: Force floor of the convergence test, × machine epsilon × the box side: safely above the
+#: round-off of the pair vectors (~ε L), below which no force converges.
 ROUNDOFF_FORCE = 50.0
 #: Pressure of the first minimisation (from random centres), and the largest factor between
 #: the pressures of two successive ones (a geometric ladder down to `TARGET_AIM` × the
-#: target). Measured, d = 3, N = 1024, 3 seeds, FIRE steps in all: factor 1e-3 6.6e5, 1e-2
-#: 6.1e5, 0.1 3.1e5, 0.3 3.6e5: small steps keep each start near its minimum.
+#: target): the factor that took the fewest FIRE steps, each start near its minimum.
 FIRST_PRESSURE = 1e-2
 PRESSURE_REDUCTION = 0.1
 #: The last minimisation holds the pressure at this fraction of the target: safely below it,
 #: and not much lower, since its cost grows as p^(-1/2) (the softest modes).
 TARGET_AIM = 0.5
-#: Pairs count as contacts when they overlap by more than this (relative): FIRE leaves a
-#: rattler exactly touching its cage, overlapping or not by round-off (measured |h| ≤ 6e-14,
-#: the smallest overlap of a stable pair 8.7e-11, N = 1024, d = 3, p = 3e-8); a rattler
-#: touching d + 1 neighbours would otherwise pass for a stable particle with zero forces.
+#: Pairs count as contacts when they overlap by more than this (relative): between the
+#: round-off overlap of a rattler touching its cage and the smallest overlap of a stable pair,
+#: so that a rattler touching d + 1 neighbours does not pass for a stable particle.
 TOUCH = 1e-12
 #: Relative gap left on the most overlapping pair by the final shrink (round-off of |r|/σ at
 #: box sides of ~30 σ is ~1e-14).
@@ -350,8 +346,8 @@ def _tighten(system: _SoftSpheres, target: float, force_tolerance: float,
 
     From a minimum converged to `INTERMEDIATE_TOLERANCE`, the tolerance drops tenfold each
     round, down to `force_tolerance`; it stops early once two rounds in a row leave the same
-    overlap network without rattlers, and that network is not hypostatic (measured, d = 3,
-    N = 1024: from 1e-4 to 1e-5 2–7 pairs still changed, below 1e-5 none).
+    overlap network without rattlers, and that network is not hypostatic (in practice below
+    1e-5 of the mean force, docs/notes/soft-quench-protocol.md).
 
     Parameters
     ----------
