@@ -182,7 +182,7 @@ def generate_start(spec: EnsembleSpec, seed: int, checkpoint: Path | None = None
     """
     import generators
 
-    from .neighbors import min_gap
+    from .neighbors import contact_shrink
 
     sizes = make_diameters(spec.n, spec.distribution, ratio=spec.ratio, std=spec.std, seed=seed)
     if spec.protocol == "ls":
@@ -198,8 +198,8 @@ def generate_start(spec: EnsembleSpec, seed: int, checkpoint: Path | None = None
     else:
         began = time.perf_counter()
         packing = generators.poisson(sizes, spec.d, spec.phi, seed)
-        gap, _ = min_gap(packing.positions, packing.diameters, packing.box)
-        packing = packing.scaled_to_phi(packing.phi * min(1.0, (1 + gap) * (1 - 1e-9)) ** spec.d)
+        shrink = contact_shrink(packing.positions, packing.diameters, packing.box)
+        packing = packing.scaled_to_phi(packing.phi * shrink**spec.d)
         return packing, float("nan"), time.perf_counter() - began
     return made.packing, float(made.reduced_pressure), float(made.wall_time)
 

@@ -14,7 +14,7 @@ import argparse
 
 import calippso
 import generators
-from calippso.neighbors import min_gap
+from calippso.neighbors import contact_shrink
 
 
 def main(argv=None) -> None:
@@ -29,8 +29,8 @@ def main(argv=None) -> None:
     points = generators.poisson(
         generators.diameters.monodisperse(n), args.d, phi=0.3, seed=args.seed
     )
-    gap, _ = min_gap(points.positions, points.diameters, points.box)
-    start = points.scaled_to_phi(points.phi * min(1.0, (1 + gap) * (1 - 1e-9)) ** args.d)
+    shrink = contact_shrink(points.positions, points.diameters, points.box)
+    start = points.scaled_to_phi(points.phi * shrink**args.d)
     print(f"random start: phi = {start.phi:.3g} (no overlap)")
     result = calippso.jam(start)
     print(result.summary())

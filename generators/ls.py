@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from calippso.neighbors import min_gap
+from calippso.neighbors import contact_shrink
 from calippso.packing import Packing
 
 from ._checks import (check_diameters, check_dimension, check_no_duplicates, check_positive,
@@ -27,7 +27,8 @@ class GrowingSpheres:
     ----------
     packing : Packing
         Start; if it overlaps, all diameters are first scaled down by one factor until the
-        closest pair has a gap of 1e-9 σ (so a Poisson start begins at a tiny density).
+        closest pair has a gap of 1e-9 σ (`calippso.neighbors.contact_shrink`; a Poisson
+        start begins at a tiny density).
         Particles at the same place (closer than 1e-12 mean diameters) are refused with a
         ValueError that names them.
     temperature : float
@@ -56,8 +57,7 @@ class GrowingSpheres:
         mean = packing.mean_diameter
         check_no_duplicates(self.x, self.box, 1e-12 * mean)
         self.nominal = np.asarray(packing.diameters, dtype=np.float64) / mean
-        gap, _ = min_gap(self.x, packing.diameters, self.box)
-        self.start_shrink = min(1.0, (1.0 + gap) * (1.0 - 1e-9))
+        self.start_shrink = contact_shrink(self.x, packing.diameters, self.box)
         self.scale = mean * self.start_shrink
         self.temperature = temperature
         self.skin = skin
