@@ -182,8 +182,8 @@ def contact_shrink(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray
     -------
     float
         min(1, (1 + h_min)(1 − `CONTACT_MARGIN`)), with h_min = |r_ij|/σ_ij − 1 the smallest
-        relative gap (`min_gap`; +inf when no pair is within contact range): 1.0 unless the
-        closest pair overlaps or is closer than about `CONTACT_MARGIN`.
+        relative gap of the touching or overlapping pairs (`min_gap`): 1.0 when no pair
+        touches.
     """
     gap, _ = min_gap(positions, diameters, box)
     return min(1.0, (1.0 + gap) * (1.0 - CONTACT_MARGIN))
