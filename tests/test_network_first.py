@@ -44,6 +44,14 @@ def jammed_from_ls(d: int, n: int, polydisperse: bool, pressure: float = 1e7):
     return start, jam(start, network_first="off")
 
 
+def assert_same_jamming_point(result, reference) -> None:
+    """The same contacts and rattlers, φ_J within 1e-10 and forces within 1e-8."""
+    np.testing.assert_array_equal(result.contacts, reference.contacts)
+    np.testing.assert_array_equal(result.rattlers, reference.rattlers)
+    assert abs(result.phi - reference.phi) < 1e-10
+    np.testing.assert_allclose(result.forces, reference.forces, rtol=0, atol=1e-8)
+
+
 CASES = [
     pytest.param(2, 64, True, id="d2-poly"),
     pytest.param(3, 64, False, id="d3-mono"),
@@ -67,10 +75,7 @@ def test_certified_network_is_what_the_lp_path_gives(d, n, polydisperse):
     assert_jammed(first)
     assert first.force_balance < 1e-12
     assert lp_only.iterations >= 1 and lp_only.isostatic
-    np.testing.assert_array_equal(first.contacts, lp_only.contacts)
-    np.testing.assert_array_equal(first.rattlers, lp_only.rattlers)
-    assert abs(first.phi - lp_only.phi) < 1e-10
-    np.testing.assert_allclose(first.forces, lp_only.forces, rtol=0, atol=1e-8)
+    assert_same_jamming_point(first, lp_only)
     # the jamming point of the source packing, found again
     np.testing.assert_array_equal(first.contacts, source.contacts)
     assert abs(first.phi - source.phi) < 1e-10
@@ -176,10 +181,7 @@ def test_a_hint_one_swap_off_is_settled_to_the_lp_result(compressed):
         assert result.iterations == 0 and result.solver == "none"
         assert_jammed(result)
         assert result.force_balance < 1e-12
-        np.testing.assert_array_equal(result.contacts, off.contacts)
-        np.testing.assert_array_equal(result.rattlers, off.rattlers)
-        assert abs(result.phi - off.phi) < 1e-10
-        np.testing.assert_allclose(result.forces, off.forces, rtol=0, atol=1e-8)
+        assert_same_jamming_point(result, off)
 
 
 def test_a_hint_too_far_from_its_jamming_point_falls_back_to_the_lps():
@@ -231,7 +233,4 @@ def test_a_soft_quench_is_jammed_with_no_lp(d, sizes):
     assert first.iterations == 0 and lp_only.iterations >= 1
     assert_jammed(first)
     assert first.force_balance < 1e-12
-    np.testing.assert_array_equal(first.contacts, lp_only.contacts)
-    np.testing.assert_array_equal(first.rattlers, lp_only.rattlers)
-    assert abs(first.phi - lp_only.phi) < 1e-10
-    np.testing.assert_allclose(first.forces, lp_only.forces, rtol=0, atol=1e-8)
+    assert_same_jamming_point(first, lp_only)

@@ -11,9 +11,8 @@ import numpy as np
 
 from ..errors import SolverError
 from ..lp import LinearProgram
-from ..settings import JamSettings
 from .base import Basis, LPSolution
-from .clarabel import ClarabelOptions
+from .clarabel import ClarabelBackend, ClarabelOptions
 
 
 def build_problem(lp: LinearProgram) -> tuple[cp.Problem, cp.Variable, cp.Constraint]:
@@ -64,14 +63,10 @@ def solve(lp: LinearProgram, options: ClarabelOptions, warm_start: Basis | None 
                       seconds=time.perf_counter() - start, vertex=False, solver="cvxpy")
 
 
-class CvxpyBackend:
+class CvxpyBackend(ClarabelBackend):
     """The "cvxpy" backend (see `Backend`); its options are Clarabel's."""
 
     name = "cvxpy"
-    options_type = ClarabelOptions
-
-    def options(self, settings: JamSettings) -> ClarabelOptions:
-        return ClarabelOptions.from_settings(settings)
 
     def validate(self, options: ClarabelOptions) -> None:
         """Nothing to check: cvxpy ships with Clarabel."""
