@@ -40,6 +40,10 @@ __all__ = ["Refinement", "refine_isostatic", "contact_jacobian", "network_jacobi
 STEP_TOLERANCE = 1e-13
 #: Largest residual | |r|²/σ² − Γ | accepted at the end (dimensionless).
 RESIDUAL_TOLERANCE = 1e-12
+#: Newton also stops when the residual is below this and the corrections stop shrinking:
+#: in a large network (N ~ 10⁴) round-off alone leaves corrections of ~1e-12 mean
+#: diameters, above `STEP_TOLERANCE`, once the residual is ~1e-14.
+ROUNDOFF_RESIDUAL = 1e-13
 #: Newton gives up when a correction exceeds this (mean diameters): the start was too far.
 MAX_CORRECTION = 0.05
 MAX_ITERATIONS = 30
@@ -228,7 +232,10 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         residual, vectors = residual_and_vectors()
         if largest < STEP_TOLERANCE:
             break
-        if largest > CHORD_CONTRACTION * previous:   # the chord is too slow: a Newton step
+        stalled = largest > CHORD_CONTRACTION * previous
+        if stalled and float(np.abs(residual).max()) <= ROUNDOFF_RESIDUAL:
+            break   # the corrections are round-off of a large system: converged
+        if stalled:   # the chord is too slow: a Newton step
             factors = factorize(jacobian(vectors))
             if factors is None:
                 return None
