@@ -26,6 +26,7 @@ iterations (HiGHS), or interior-point iterations and seconds per iteration (Clar
 from __future__ import annotations
 
 import argparse
+import json
 import time
 
 import clarabel
@@ -38,7 +39,7 @@ from calippso.lp import LinearProgram
 from calippso.solvers import Basis, LPAttempt
 from calippso.solvers.clarabel import ClarabelOptions
 from calippso.solvers.conic_form import conic_form
-from calippso.solvers.highs import HighsOptions, _mapped_basis, _model
+from calippso.solvers.highs import HighsOptions, highs_model, mapped_basis
 
 #: HiGHS's tolerances as the loop sets them (`HighsOptions` defaults).
 TOLERANCES = {"primal_feasibility_tolerance": HighsOptions().feasibility_tolerance,
@@ -115,7 +116,7 @@ def time_highs(lp: LinearProgram, options: dict,
     for key, value in {**TOLERANCES, **options}.items():
         if highs.setOptionValue(key, value) != highspy.HighsStatus.kOk:
             return np.nan, f"{key}={value} not in this build", np.nan, ""
-    highs.passModel(_model(lp))
+    highs.passModel(highs_model(lp))
     start = time.perf_counter()
     highs.run()
     seconds = time.perf_counter() - start
@@ -133,7 +134,7 @@ def time_warm(lp: LinearProgram, basis: highspy.HighsBasis, options: dict,
     for key, value in {**TOLERANCES, "solver": "simplex", "simplex_strategy": 4,
                        **options}.items():
         highs.setOptionValue(key, value)
-    highs.passModel(_model(lp))
+    highs.passModel(highs_model(lp))
     highs.setBasis(basis)
     start = time.perf_counter()
     highs.run()
@@ -149,7 +150,7 @@ def optimal_basis(lp: LinearProgram) -> highspy.HighsBasis:
     highs.setOptionValue("output_flag", False)
     for key, value in {**TOLERANCES, **HIGHS_VARIANTS["HiGHS IPX + crossover"]}.items():
         highs.setOptionValue(key, value)
-    highs.passModel(_model(lp))
+    highs.passModel(highs_model(lp))
     highs.run()
     return highs.getBasis()
 
@@ -202,6 +203,7 @@ def main() -> None:
                              "own optimal basis, which leaves only the set-up and factorisation)")
     parser.add_argument("--morton", action="store_true",
                         help="renumber the particles along a Morton curve first")
+    parser.add_argument("--json", help="also write the rows to this JSON file")
     args = parser.parse_args()
 
     start = calippso.read(args.input) if args.input else ls_input(args.n)
@@ -212,7 +214,7 @@ def main() -> None:
     print(f"LP {args.lp} of the N = {start.n}, d = {start.d} run: {lp.n_rows} rows, "
           f"{lp.n_cols} columns, {lp.matrix.nnz} non-zeros")
     if args.warm:
-        basis = _mapped_basis(warm_start, lp) if warm_start is not None else None
+        basis = mapped_basis(warm_start, lp) if warm_start is not None else None
         if basis is None:
             raise SystemExit(f"the loop solves LP {args.lp} cold: pick another --lp")
         variants = {name: (lambda options=options: time_warm(lp, basis, options, args.log))
@@ -234,6 +236,13 @@ def main() -> None:
     for name, (seconds, status, gamma, iterations) in rows:
         print(f"{name:<34} {seconds:>8.2f} {status:>10} {gamma:>14.6e}  {iterations}",
               flush=True)
+    if args.json:
+        with open(args.json, "w") as stream:
+            json.dump([{"solver": name, "seconds": seconds, "status": str(status),
+                        "gamma": float(gamma), "iterations": str(iterations),
+                        "lp": args.lp, "rows": lp.n_rows, "columns": lp.n_cols}
+                       for name, (seconds, status, gamma, iterations) in rows],
+                      stream, indent=1)
 
 
 if __name__ == "__main__":

@@ -155,7 +155,8 @@ def interior_point_for(lp: LinearProgram, setting: str) -> str:
     return "hipo" if lp.n_cols >= HIPO_MIN_COLUMNS and hipo_available() else "ipx"
 
 
-def _model(lp: LinearProgram) -> highspy.HighsLp:
+def highs_model(lp: LinearProgram) -> highspy.HighsLp:
+    """The LP as a HiGHS model (minimise −γ; rows ≥ row_lower; the column bounds)."""
     model = highspy.HighsLp()
     model.num_col_ = lp.n_cols
     model.num_row_ = lp.n_rows
@@ -189,7 +190,7 @@ def _basis_of(highs: highspy.Highs, lp: LinearProgram) -> Basis | None:
                  np.array([int(v) for v in basis.col_status], dtype=np.int8))
 
 
-def _mapped_basis(previous: Basis, lp: LinearProgram) -> highspy.HighsBasis | None:
+def mapped_basis(previous: Basis, lp: LinearProgram) -> highspy.HighsBasis | None:
     """The previous basis on this LP's rows: a row of the same pair keeps its status, a new
     row starts basic (inactive). None when the columns differ or the count of basic
     variables is not the number of rows (a dropped row was active)."""
@@ -248,8 +249,8 @@ def solve(lp: LinearProgram, options: HighsOptions, warm_start: Basis | None = N
         highs = _quiet_highs()
         highs.setOptionValue("primal_feasibility_tolerance", options.feasibility_tolerance)
         highs.setOptionValue("dual_feasibility_tolerance", options.feasibility_tolerance)
-        highs.passModel(_model(lp))
-        basis = _mapped_basis(warm_start, lp) if warm_start is not None else None
+        highs.passModel(highs_model(lp))
+        basis = mapped_basis(warm_start, lp) if warm_start is not None else None
         if basis is not None and highs.setBasis(basis) == highspy.HighsStatus.kOk:
             highs.setOptionValue("solver", "simplex")
             highs.setOptionValue("simplex_strategy", _PRIMAL_SIMPLEX)
