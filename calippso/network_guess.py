@@ -43,11 +43,10 @@ SPLITS_TRIED = 3
 #: of a compressed LS state (p ≤ 1e5, gaps ~1e-5) do not.
 NEAR_CONTACT_GAP = 1e-6
 #: A hint's candidate also holds the pairs with gaps below this factor times its largest
-#: contact gap: near-contacts that may close on the way to the jamming point. The jamming
-#: point of a quench shrunk from pressure p lies ~p away, and pairs that close there lie up to
-#: ~10 p from contact (d = 5, N = 1024); a narrower band leaves the restricted LP unbounded
-#: and costs a widening round. Later rounds read the pairs within the same factor of every
-#: candidate's largest gap.
+#: contact gap: near-contacts that may close on the way to the jamming point, which for a
+#: quench shrunk from pressure p lie up to ~10 p from contact; a narrower band leaves the
+#: restricted LP unbounded and costs a widening round. Later rounds read the pairs within
+#: the same factor of every candidate's largest gap.
 NEAR_PAIR_FACTOR = 32.0
 #: A candidate read from the gap spectrum that is hyperstatic by more than this many contacts
 #: is not tried: such a network is a crystal or a compressed state, not a jamming point with
