@@ -129,3 +129,25 @@ def test_chord_steps_reuse_one_factorisation(jammed):
                                stable)
     assert refined is not None and refined.positive and refined.residual < 1e-13
     assert refined.factorizations == 1 and refined.iterations >= 2
+
+
+def test_corrections_at_round_off_end_newton(jammed, monkeypatch):
+    """Once the residual is at round-off, corrections stop shrinking (in a large network
+    they stay above `STEP_TOLERANCE`): Newton ends there, at the jamming point, rather than
+    failing. Here no correction can pass a zero step tolerance."""
+    import calippso.newton as newton
+
+    monkeypatch.setattr(newton, "STEP_TOLERANCE", 0.0)
+    _, result = jammed
+    packing = result.packing
+    stable = ~result.rattlers
+    rng = np.random.default_rng(5)
+    moved = packing.positions + 1e-6 * rng.standard_normal(packing.positions.shape)
+    moved[np.flatnonzero(stable)[0]] = packing.positions[np.flatnonzero(stable)[0]]
+    i, j = result.contacts.T
+    refined = refine_isostatic(moved, packing.diameters * (1 - 1e-7), packing.box, i, j,
+                               stable)
+    assert refined is not None and refined.positive
+    assert refined.residual < newton.ROUNDOFF_RESIDUAL
+    assert refined.iterations < newton.MAX_ITERATIONS
+    np.testing.assert_allclose(refined.diameters, packing.diameters, rtol=1e-12)
