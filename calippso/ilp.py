@@ -27,7 +27,7 @@ from .contacts import (contact_mask, force_balance, isostaticity_gap, polish_for
                        positive_self_stress, remove_rattlers)
 from .errors import JammingError, SolverError
 from .lp import LinearProgram, build_lp, largest_safe_step, select_pairs
-from .neighbors import NeighborSearch, Pairs
+from .neighbors import SAME_PLACE, NeighborSearch, Pairs, check_no_duplicates
 from .network_first import SettledNetwork, settle_candidate
 from .network_guess import Candidate, candidate_networks, check_network_hint
 from .newton import Refinement, refine_isostatic
@@ -184,18 +184,14 @@ def check_enough_particles(n: int, d: int) -> None:
 
 
 def check_input_overlaps(search: NeighborSearch, tolerance: float) -> None:
-    """Raise ValueError naming duplicated or overlapping particles of an input.
+    """Raise ValueError naming duplicated or overlapping particles of an input (in mean
+    diameters, the loop's units).
 
     Overlaps down to a relative gap h = |r|/σ − 1 > −`tolerance` are round-off and accepted.
     """
+    check_no_duplicates(search.positions, search.box, SAME_PLACE)
     close = search.pairs_within(float(search.diameters.max()))
     gaps = close.gaps
-    duplicated = close.distances <= 1e-12 * close.sigma
-    if duplicated.any():
-        k = int(np.flatnonzero(duplicated)[0])
-        raise ValueError(
-            f"duplicated particles in the input: particles {close.i[k]} and {close.j[k]} sit "
-            f"at the same position (modulo the box); {int(duplicated.sum())} such pair(s)")
     if gaps.size and gaps.min() < -tolerance:
         k = int(np.argmin(gaps))
         count = int(np.count_nonzero(gaps < -tolerance))

@@ -13,11 +13,18 @@ from scipy.spatial import cKDTree
 from .packing import minimum_image, wrap
 
 __all__ = ["Pairs", "NeighborSearch", "pairs_within", "close_pairs", "min_gap", "contact_shrink",
-           "CONTACT_MARGIN"]
+           "shrink_to_margin", "check_no_duplicates", "CONTACT_MARGIN", "NEAR_CONTACT_SLACK",
+           "SAME_PLACE"]
 
 #: Relative gap that `contact_shrink` leaves on the closest pair: far above the round-off of
 #: |r|/σ, far below any gap that matters to a start.
 CONTACT_MARGIN = 1e-9
+#: `NeighborSearch.pairs_near_contact` reaches this fraction beyond the largest diameter, so
+#: that a pair at contact up to round-off is never missed by the cutoff.
+NEAR_CONTACT_SLACK = 1e-6
+#: Two centres closer than this, in mean diameters, sit at the same place
+#: (`check_no_duplicates`): no shrink of the diameters can separate them.
+SAME_PLACE = 1e-12
 
 
 @dataclass(frozen=True)
@@ -93,6 +100,18 @@ class NeighborSearch:
             ij.sort(axis=1)
             ij = ij[np.lexsort((ij[:, 1], ij[:, 0]))]
         return self.pairs_of(ij[:, 0], ij[:, 1])
+
+    def pairs_near_contact(self) -> Pairs:
+        """Every pair that touches or overlaps, and the nearly touching ones: centre distance
+        at most the largest diameter × (1 + `NEAR_CONTACT_SLACK`).
+
+        Returns
+        -------
+        Pairs
+            Sorted by (i, j), with i < j; their `Pairs.gaps` hold every negative gap of the
+            configuration.
+        """
+        return self.pairs_within(float(self.diameters.max()) * (1.0 + NEAR_CONTACT_SLACK))
 
     def pairs_of(self, i: np.ndarray, j: np.ndarray) -> Pairs:
         """Geometry of given pairs (index arrays of equal length, i < j)."""
@@ -186,4 +205,44 @@ def contact_shrink(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray
         touches.
     """
     gap, _ = min_gap(positions, diameters, box)
-    return min(1.0, (1.0 + gap) * (1.0 - CONTACT_MARGIN))
+    return shrink_to_margin(gap)
+
+
+def shrink_to_margin(gap: float, margin: float = CONTACT_MARGIN) -> float:
+    """Factor on all diameters that leaves a pair of relative gap `gap` a relative gap of
+    about `margin`, and never grows them: min(1, (1 + gap)(1 − margin)).
+
+    Parameters
+    ----------
+    gap : float
+        Relative gap h = |r|/σ − 1 of the closest pair (negative for an overlap).
+    margin : float
+        Relative gap left on that pair (dimensionless, ≥ 0).
+    """
+    return min(1.0, (1.0 + gap) * (1.0 - margin))
+
+
+def check_no_duplicates(positions: np.ndarray, box: np.ndarray, resolution: float) -> None:
+    """ValueError naming two particles whose centres coincide (closer than `resolution`).
+
+    An overlapping configuration can be shrunk to contact, or is refused with its own message
+    by `calippso.jam`; two particles at the same place cannot be separated by any shrink.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres (length units; wrapped or not).
+    box : ndarray, shape (d,)
+        Periodic box sides (length units).
+    resolution : float
+        Centres closer than this (length units) count as the same place; `SAME_PLACE` ×
+        the mean diameter is the rule of `calippso.jam` and the generators.
+    """
+    box = np.asarray(box, dtype=np.float64)
+    tree = cKDTree(wrap(np.asarray(positions, dtype=np.float64), box), boxsize=box)
+    pairs = tree.query_pairs(resolution, output_type="ndarray")
+    if pairs.shape[0]:
+        i, j = sorted(int(k) for k in pairs[np.lexsort(pairs.T[::-1])][0])
+        raise ValueError(f"duplicated particles in the input: particles {i} and {j} sit at "
+                         f"the same position {np.asarray(positions)[i].tolist()} (modulo the "
+                         f"box); {pairs.shape[0]} such pair(s)")

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["check_diameters", "check_dimension", "check_positive", "check_phi", "phi_estimate",
-           "check_no_duplicates"]
+__all__ = ["check_diameters", "check_dimension", "check_positive", "check_phi", "phi_estimate"]
 
 
 def check_diameters(diameters) -> np.ndarray:
@@ -81,31 +80,3 @@ def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray,
         return diameters, 0.0
     correction = -gap + 1e-15
     return diameters * (1.0 - correction), correction
-
-
-def check_no_duplicates(positions: np.ndarray, box: np.ndarray, resolution: float) -> None:
-    """ValueError naming two particles whose centres coincide (closer than `resolution`).
-
-    An overlapping start is fine for the generators (it is shrunk to contact), but two
-    particles at the same place cannot be separated by any shrink factor.
-
-    Parameters
-    ----------
-    positions : ndarray, shape (N, d)
-        Centres (wrapped or not).
-    box : ndarray, shape (d,)
-        Periodic box sides.
-    resolution : float
-        Centres closer than this (length units) count as the same place.
-    """
-    from scipy.spatial import cKDTree
-
-    from calippso.packing import wrap
-
-    tree = cKDTree(wrap(np.asarray(positions, dtype=np.float64), box), boxsize=box)
-    pairs = tree.query_pairs(resolution, output_type="ndarray")
-    if pairs.shape[0]:
-        i, j = sorted(int(k) for k in pairs[np.lexsort(pairs.T[::-1])][0])
-        raise ValueError(f"duplicated particles: particles {i} and {j} sit at the same position "
-                         f"{np.asarray(positions)[i].tolist()} (modulo the box); "
-                         f"{pairs.shape[0]} such pair(s)")

@@ -6,11 +6,10 @@ import time
 
 import numpy as np
 
-from calippso.neighbors import contact_shrink
+from calippso.neighbors import SAME_PLACE, check_no_duplicates, contact_shrink
 from calippso.packing import Packing
 
-from ._checks import (check_diameters, check_dimension, check_no_duplicates, check_positive,
-                      remove_roundoff_overlap)
+from ._checks import check_diameters, check_dimension, check_positive, remove_roundoff_overlap
 from .checkpoint import Checkpoint, digest
 from ._progress import Progress
 from .edmd import run_window
@@ -55,7 +54,7 @@ class GrowingSpheres:
         self.box = np.array(packing.box, dtype=np.float64)
         self.x = np.array(packing.wrapped().positions, dtype=np.float64)
         mean = packing.mean_diameter
-        check_no_duplicates(self.x, self.box, 1e-12 * mean)
+        check_no_duplicates(self.x, self.box, SAME_PLACE * mean)
         self.nominal = np.asarray(packing.diameters, dtype=np.float64) / mean
         self.start_shrink = contact_shrink(self.x, packing.diameters, self.box)
         self.scale = mean * self.start_shrink
