@@ -1,12 +1,17 @@
-"""Atomic file writes: write beside the target, flush to disk, then rename into place.
+"""What every checkpoint needs: atomic file writes, and the digest that names a configuration.
 
-A process killed at any moment leaves the previous file or the new one, never a torn file.
-The file gets the permissions `open()` would give it: those of the file it replaces, or
-0o666 less the process umask for a new file (the temporary file itself is private).
+Atomic writes go beside the target, are flushed to disk, then renamed into place: a process
+killed at any moment leaves the previous file or the new one, never a torn file. The file
+gets the permissions `open()` would give it: those of the file it replaces, or 0o666 less the
+process umask for a new file (the temporary file itself is private).
+
+`digest` identifies a configuration by its arrays, so that a checkpoint can refuse to
+continue the run of another input.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import stat
 import tempfile
@@ -17,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_path", "current_umask", "save_npz_atomic"]
+__all__ = ["atomic_path", "current_umask", "digest", "save_npz_atomic"]
 
 #: Permissions `open()` asks for when it creates a file (the umask is then taken off).
 NEW_FILE_MODE = 0o666
@@ -84,3 +89,24 @@ def save_npz_atomic(path: str | os.PathLike, arrays: dict[str, np.ndarray]) -> N
             np.savez(stream, **arrays)
             stream.flush()
             os.fsync(stream.fileno())
+
+
+def digest(*arrays: np.ndarray) -> str:
+    """SHA-256 of the shapes and float64 bytes of `arrays`, in order: identifies a configuration.
+
+    Parameters
+    ----------
+    *arrays : array_like
+        E.g. positions (N, d), diameters (N,) and box (d,); each is read as float64.
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits.
+    """
+    h = hashlib.sha256()
+    for array in arrays:
+        array = np.ascontiguousarray(array, dtype=np.float64)
+        h.update(str(array.shape).encode())
+        h.update(array.tobytes())
+    return h.hexdigest()

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .packing import minimum_image, wrap
+from .periodic import minimum_image, wrap
 
 __all__ = ["Pairs", "NeighborSearch", "pairs_within", "close_pairs", "min_gap", "contact_shrink",
            "shrink_to_margin", "check_no_duplicates", "CONTACT_MARGIN", "NEAR_CONTACT_SLACK",

@@ -1,7 +1,10 @@
-"""The `Packing` type: hard (hyper)spheres in a periodic box, and the periodic geometry helpers.
+"""The `Packing` type: hard (hyper)spheres in a periodic box, its packing fraction and the
+d-ball volume.
 
 This module imports numpy only, so that every part of the project (the LP core, the Numba
-generators, the readers) can share it without pulling in anything heavy.
+generators, the readers) can share it without pulling in anything heavy. The periodic
+geometry lives in `calippso.periodic`; `minimum_image` and `wrap` are imported here too, for
+the modules that take them from this one.
 """
 
 from __future__ import annotations
@@ -10,6 +13,8 @@ from dataclasses import dataclass
 from math import gamma, pi
 
 import numpy as np
+
+from .periodic import minimum_image, wrap
 
 __all__ = ["Packing", "ball_volume", "minimum_image", "wrap"]
 
@@ -30,44 +35,6 @@ def ball_volume(d: int, radius: np.ndarray | float) -> np.ndarray | float:
         Volume(s) in length^d, same shape as `radius`.
     """
     return pi ** (d / 2) * np.asarray(radius, dtype=float) ** d / gamma(d / 2 + 1)
-
-
-def wrap(positions: np.ndarray, box: np.ndarray) -> np.ndarray:
-    """Wrap positions into the half-open box [0, L) in every direction.
-
-    `x % L` can round to exactly L for tiny negative x; such values are set to 0 so that the
-    result is strictly inside [0, L) (as `scipy.spatial.cKDTree(boxsize=L)` requires).
-
-    Parameters
-    ----------
-    positions : ndarray, shape (N, d)
-    box : ndarray, shape (d,)
-
-    Returns
-    -------
-    ndarray, shape (N, d)
-        A new array with every coordinate in [0, L_μ).
-    """
-    wrapped = np.mod(positions, box)
-    wrapped[wrapped >= box] = 0.0
-    return wrapped
-
-
-def minimum_image(delta: np.ndarray, box: np.ndarray) -> np.ndarray:
-    """Minimum-image convention: r − L·round(r/L), componentwise.
-
-    Parameters
-    ----------
-    delta : ndarray, shape (..., d)
-        Raw separation vectors r_i − r_j.
-    box : ndarray, shape (d,)
-
-    Returns
-    -------
-    ndarray, shape (..., d)
-        Separations with every component in [−L/2, L/2].
-    """
-    return delta - box * np.round(delta / box)
 
 
 def _as_float_array(value, name: str, ndim: int) -> np.ndarray:

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from scipy.optimize import linprog
 
 from .neighbors import NeighborSearch
-from .packing import wrap
+from .periodic import wrap
 
 __all__ = ["separate_rattlers"]
 

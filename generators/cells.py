@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .periodic import image_component
+
 __all__ = ["cell_offsets", "verlet_lists"]
 
 
@@ -115,8 +117,7 @@ def verlet_lists(x: np.ndarray, box: np.ndarray, diameters: np.ndarray, skin: fl
                     continue
                 r2 = 0.0
                 for mu in range(d):
-                    dx = x[i, mu] - x[j, mu]
-                    dx -= box[mu] * np.rint(dx * inv[mu])
+                    dx = image_component(x[i, mu] - x[j, mu], box[mu], inv[mu])
                     r2 += dx * dx
                 cut = 0.5 * (diameters[i] + diameters[j]) + skin
                 if r2 < cut * cut:
@@ -144,13 +145,3 @@ def verlet_lists(x: np.ndarray, box: np.ndarray, diameters: np.ndarray, skin: fl
         neighbours[fill[pair_j[p]]] = pair_i[p]
         fill[pair_j[p]] += 1
     return start, neighbours
-
-
-@njit(cache=True)
-def wrap_into_box(x: np.ndarray, box: np.ndarray) -> None:
-    """Wrap positions (N, d) into [0, L) in place; a coordinate that rounds to L becomes 0."""
-    for i in range(x.shape[0]):
-        for mu in range(x.shape[1]):
-            x[i, mu] -= box[mu] * np.floor(x[i, mu] / box[mu])
-            if x[i, mu] >= box[mu] or x[i, mu] < 0.0:
-                x[i, mu] = 0.0

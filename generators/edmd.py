@@ -25,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .cells import verlet_lists, wrap_into_box
+from .cells import verlet_lists
+from .periodic import image_component, wrap_into_box
 
 __all__ = ["run_window", "skin_length"]
 
@@ -151,8 +152,7 @@ def _predict(i, t, x, v, tl, s, box, inv, scale, rate, start, neighbours, counte
         rv = 0.0
         vv = 0.0
         for mu in range(d):
-            dx = x[i, mu] - x[j, mu] - v[j, mu] * dt
-            dx -= box[mu] * np.rint(dx * inv[mu])
+            dx = image_component(x[i, mu] - x[j, mu] - v[j, mu] * dt, box[mu], inv[mu])
             dv = v[i, mu] - v[j, mu]
             rr += dx * dx
             rv += dx * dv
@@ -323,8 +323,7 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
         rr = 0.0
         u = 0.0
         for mu in range(d):
-            dx = x[i, mu] - x[j, mu]
-            dx -= box[mu] * np.rint(dx * inv[mu])
+            dx = image_component(x[i, mu] - x[j, mu], box[mu], inv[mu])
             r[mu] = dx
             rr += dx * dx
         dist = np.sqrt(rr)

@@ -12,7 +12,8 @@ from calippso.packing import Packing
 from ._checks import (check_diameters, check_dimension, check_phi, check_positive,
                       phi_estimate, remove_roundoff_overlap)
 from ._progress import Progress
-from .cells import verlet_lists, wrap_into_box
+from .cells import verlet_lists
+from .periodic import image_component, wrap_into_box
 from .initial import poisson
 from .result import GenerationResult, make_history
 
@@ -60,8 +61,7 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin)
                     continue
                 rr = 0.0
                 for mu in range(d):
-                    dx = x[i, mu] - x[j, mu]
-                    dx -= box[mu] * np.rint(dx * inv[mu])
+                    dx = image_component(x[i, mu] - x[j, mu], box[mu], inv[mu])
                     r[mu] = dx
                     rr += dx * dx
                 sig = 0.5 * (s[i] + s[j])

@@ -19,7 +19,8 @@ from . import _fire
 from ._checks import (check_diameters, check_dimension, check_phi, check_positive,
                       phi_estimate, remove_roundoff_overlap)
 from ._progress import Progress
-from .cells import verlet_lists, wrap_into_box
+from .cells import verlet_lists
+from .periodic import wrap_into_box
 from .initial import poisson
 from .result import GenerationResult, make_history
 

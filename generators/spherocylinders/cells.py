@@ -13,20 +13,9 @@ import math
 import numba
 import numpy as np
 
-from .geometry import segment_distance2
+from .geometry import segment_distance2, separation
 
 __all__ = ["pair_list"]
-
-
-@numba.njit(cache=True, inline="always")
-def _nearest_image(x, length):
-    """Minimum image of a difference of two coordinates inside [0, L) (so |x| < L): the same
-    number as `geometry.minimum_image_component` without its division."""
-    if x >= 0.5 * length:
-        return x - length
-    if x < -0.5 * length:
-        return x + length
-    return x
 
 
 @numba.njit(cache=True, inline="always")
@@ -37,13 +26,11 @@ def _exceeds(squared_distance, bound):
 
 
 @numba.njit(cache=True, inline="always")
-def _test_pair(positions, axes, half_lengths, diameters, box, skin, i, j):
+def _test_pair(positions, axes, half_lengths, diameters, box, inverse, skin, i, j):
     sigma = 0.5 * (diameters[i] + diameters[j])
     cutoff = sigma + skin
     reach = half_lengths[i] + half_lengths[j] + cutoff
-    rx = _nearest_image(positions[j, 0] - positions[i, 0], box[0])
-    ry = _nearest_image(positions[j, 1] - positions[i, 1], box[1])
-    rz = _nearest_image(positions[j, 2] - positions[i, 2], box[2])
+    rx, ry, rz = separation(positions, box, inverse, i, j)
     r2 = rx * rx + ry * ry + rz * rz
     if r2 >= reach * reach:
         return False
@@ -68,6 +55,7 @@ def _test_pair(positions, axes, half_lengths, diameters, box, skin, i, j):
 def _fill_pairs(positions, axes, half_lengths, diameters, box, skin, out):
     """Write the listed pairs into `out` (M_max, 2); return their number (may exceed M_max)."""
     n = positions.shape[0]
+    inverse = 1.0 / box
     capacity = out.shape[0]
     count = 0
     cell_side = 2.0 * half_lengths.max() + diameters.max() + skin
@@ -77,7 +65,7 @@ def _fill_pairs(positions, axes, half_lengths, diameters, box, skin, out):
     if ncell.min() < 3:
         for i in range(n - 1):
             for j in range(i + 1, n):
-                if _test_pair(positions, axes, half_lengths, diameters, box, skin, i, j):
+                if _test_pair(positions, axes, half_lengths, diameters, box, inverse, skin, i, j):
                     if count < capacity:
                         out[count, 0] = i
                         out[count, 1] = j
@@ -104,7 +92,7 @@ def _fill_pairs(positions, axes, half_lengths, diameters, box, skin, out):
                     j = head[(cx * ncell[1] + cy) * ncell[2] + cz]
                     while j >= 0:
                         if j > i and _test_pair(positions, axes, half_lengths, diameters, box,
-                                                skin, i, j):
+                                                inverse, skin, i, j):
                             if count < capacity:
                                 out[count, 0] = i
                                 out[count, 1] = j

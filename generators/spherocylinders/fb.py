@@ -48,7 +48,8 @@ from .._checks import check_positive
 from ..checkpoint import Checkpoint, digest
 from ..result import GenerationResult, make_history
 from .cells import pair_list
-from .geometry import min_distance_ratio, minimum_image_component, segment_distance2
+from ..periodic import wrap_coordinate
+from .geometry import min_distance_ratio, segment_distance2, separation
 from .packing import SpherocylinderPacking
 
 __all__ = ["default_initial_density", "estimated_density", "force_biased", "pair_list_skin",
@@ -158,6 +159,7 @@ def _evaluate(positions, axes, d0, h0, box, scale, pairs, rotate, push, turn, ov
     """
     push[:] = 0.0
     turn[:] = 0.0
+    inverse = 1.0 / box
     count = 0
     lower = np.inf
     for k in range(pairs.shape[0]):
@@ -167,9 +169,7 @@ def _evaluate(positions, axes, d0, h0, box, scale, pairs, rotate, push, turn, ov
         sigma = scale * sigma0
         hi = scale * h0[i]
         hj = scale * h0[j]
-        rx = minimum_image_component(positions[j, 0] - positions[i, 0], box[0])
-        ry = minimum_image_component(positions[j, 1] - positions[i, 1], box[1])
-        rz = minimum_image_component(positions[j, 2] - positions[i, 2], box[2])
+        rx, ry, rz = separation(positions, box, inverse, i, j)
         uix, uiy, uiz = axes[i, 0], axes[i, 1], axes[i, 2]
         ujx, ujy, ujz = axes[j, 0], axes[j, 1], axes[j, 2]
         d2, lam, mu = segment_distance2(rx, ry, rz, uix, uiy, uiz, ujx, ujy, ujz, hi, hj)
@@ -240,8 +240,7 @@ def _move(positions, axes, box, push, turn, eps, eps_rot, reach, moved):
         positions[i, 1] += dy
         positions[i, 2] += dz
         for a in range(3):
-            x = positions[i, a] % box[a]
-            positions[i, a] = 0.0 if x >= box[a] else x
+            positions[i, a] = wrap_coordinate(positions[i, a], box[a])
         step = math.sqrt(dx * dx + dy * dy + dz * dz)
         if eps_rot[i] > 0.0:
             ux = axes[i, 0] + eps_rot[i] * turn[i, 0]
@@ -258,11 +257,9 @@ def _move(positions, axes, box, push, turn, eps, eps_rot, reach, moved):
 
 
 @numba.njit(cache=True)
-def _gap(positions, axes, d0, h0, box, i, j, scale):
+def _gap(positions, axes, d0, h0, box, inverse, i, j, scale):
     """δ_ij(scale) − scale σ⁰_ij: ≥ 0 when the pair does not overlap at that scale."""
-    rx = minimum_image_component(positions[j, 0] - positions[i, 0], box[0])
-    ry = minimum_image_component(positions[j, 1] - positions[i, 1], box[1])
-    rz = minimum_image_component(positions[j, 2] - positions[i, 2], box[2])
+    rx, ry, rz = separation(positions, box, inverse, i, j)
     d2, _, _ = segment_distance2(rx, ry, rz, axes[i, 0], axes[i, 1], axes[i, 2],
                                  axes[j, 0], axes[j, 1], axes[j, 2],
                                  scale * h0[i], scale * h0[j])
@@ -280,14 +277,15 @@ def _inner_scale(positions, axes, d0, h0, box, scale, pairs, overlaps, count):
     evaluated in floating point.
     """
     lows = np.empty(count)
+    inverse = 1.0 / box
     upper = scale
     for k in range(count):
         i = pairs[overlaps[k], 0]
         j = pairs[overlaps[k], 1]
         sigma0 = 0.5 * (d0[i] + d0[j])
-        lo = (_gap(positions, axes, d0, h0, box, i, j, scale) + scale * sigma0) / sigma0
+        lo = (_gap(positions, axes, d0, h0, box, inverse, i, j, scale) + scale * sigma0) / sigma0
         lows[k] = lo
-        hi = (_gap(positions, axes, d0, h0, box, i, j, lo) + lo * sigma0) / sigma0
+        hi = (_gap(positions, axes, d0, h0, box, inverse, i, j, lo) + lo * sigma0) / sigma0
         if hi < upper:
             upper = hi
     result = scale
@@ -300,13 +298,13 @@ def _inner_scale(positions, axes, d0, h0, box, scale, pairs, overlaps, count):
         i = pairs[overlaps[k], 0]
         j = pairs[overlaps[k], 1]
         hi = min(upper, scale)
-        if _gap(positions, axes, d0, h0, box, i, j, lo) < 0.0:  # rounding: step back a little
+        if _gap(positions, axes, d0, h0, box, inverse, i, j, lo) < 0.0:  # rounding: step back
             lo *= 1.0 - 1e-12
         for _ in range(BISECTION_STEPS):
             mid = 0.5 * (lo + hi)
             if mid <= lo or mid >= hi:
                 break
-            if _gap(positions, axes, d0, h0, box, i, j, mid) >= 0.0:
+            if _gap(positions, axes, d0, h0, box, inverse, i, j, mid) >= 0.0:
                 lo = mid
             else:
                 hi = mid

@@ -17,6 +17,10 @@ import math
 import numba
 import numpy as np
 
+from calippso.periodic import minimum_image
+
+from ..periodic import image_component
+
 __all__ = ["shaft_distance", "min_distance_ratio", "overlapping_pairs"]
 
 #: Below this value of 1 − (u_i·u_j)² the shafts count as (nearly) parallel: the closed-form
@@ -112,23 +116,11 @@ def segment_distance2(rx, ry, rz, uix, uiy, uiz, ujx, ujy, ujz, hi, hj):
 
 
 @numba.njit(cache=True, inline="always")
-def minimum_image_component(x: float, length: float) -> float:
-    """x − L·round(x / L) for one component (length units)."""
-    return x - length * math.floor(x / length + 0.5)
-
-
-@numba.njit(cache=True)
-def pair_distance2(positions, axes, half_lengths, box, i, j):
-    """Squared shaft distance of particles i and j in a periodic box (minimum image).
-
-    Returns (δ², λ, μ) as `segment_distance2`.
-    """
-    rx = minimum_image_component(positions[j, 0] - positions[i, 0], box[0])
-    ry = minimum_image_component(positions[j, 1] - positions[i, 1], box[1])
-    rz = minimum_image_component(positions[j, 2] - positions[i, 2], box[2])
-    return segment_distance2(rx, ry, rz, axes[i, 0], axes[i, 1], axes[i, 2],
-                             axes[j, 0], axes[j, 1], axes[j, 2],
-                             half_lengths[i], half_lengths[j])
+def separation(positions, box, inverse, i, j):
+    """Minimum image of r_j − r_i (length units) as three components; `inverse` is 1 / box."""
+    return (image_component(positions[j, 0] - positions[i, 0], box[0], inverse[0]),
+            image_component(positions[j, 1] - positions[i, 1], box[1], inverse[1]),
+            image_component(positions[j, 2] - positions[i, 2], box[2], inverse[2]))
 
 
 @numba.njit(cache=True)
@@ -140,6 +132,7 @@ def _all_pairs_ratio(positions, axes, lengths, diameters, box, threshold):
     """
     horizon = max(threshold, 2.0)
     n = positions.shape[0]
+    inverse = 1.0 / box
     half = 0.5 * lengths
     smallest = np.inf
     found = []
@@ -147,9 +140,7 @@ def _all_pairs_ratio(positions, axes, lengths, diameters, box, threshold):
         for j in range(i + 1, n):
             sigma = 0.5 * (diameters[i] + diameters[j])
             reach = half[i] + half[j] + sigma * horizon
-            rx = minimum_image_component(positions[j, 0] - positions[i, 0], box[0])
-            ry = minimum_image_component(positions[j, 1] - positions[i, 1], box[1])
-            rz = minimum_image_component(positions[j, 2] - positions[i, 2], box[2])
+            rx, ry, rz = separation(positions, box, inverse, i, j)
             if rx * rx + ry * ry + rz * rz >= reach * reach:
                 continue
             d2, _, _ = segment_distance2(rx, ry, rz, axes[i, 0], axes[i, 1], axes[i, 2],
@@ -185,8 +176,7 @@ def shaft_distance(center_i, axis_i, length_i: float, center_j, axis_j, length_j
     """
     r = np.asarray(center_j, dtype=np.float64) - np.asarray(center_i, dtype=np.float64)
     if box is not None:
-        sides = np.broadcast_to(np.asarray(box, dtype=np.float64), (3,))
-        r = r - sides * np.round(r / sides)
+        r = minimum_image(r, np.broadcast_to(np.asarray(box, dtype=np.float64), (3,)))
     ui = np.asarray(axis_i, dtype=np.float64)
     uj = np.asarray(axis_j, dtype=np.float64)
     for name, axis in (("axis_i", ui), ("axis_j", uj)):

@@ -7,6 +7,8 @@ from math import pi
 
 import numpy as np
 
+from calippso.periodic import wrap
+
 __all__ = ["SpherocylinderPacking", "spherocylinder_volume", "min_particles_for_box"]
 
 #: Axes must have unit norm to this relative tolerance (they are then renormalised exactly).
@@ -206,9 +208,7 @@ class SpherocylinderPacking:
 
     def wrapped(self) -> "SpherocylinderPacking":
         """The same packing with every centre inside [0, L)."""
-        wrapped = np.mod(self.positions, self.box)
-        wrapped[wrapped >= self.box] = 0.0
-        return SpherocylinderPacking(wrapped, self.axes, self.diameters, self.lengths, self.box)
+        return SpherocylinderPacking(wrap(self.positions, self.box), self.axes, self.diameters, self.lengths, self.box)
 
     def scaled(self, factor: float) -> "SpherocylinderPacking":
         """The same centres and axes with all diameters and lengths multiplied by `factor`."""
