@@ -57,6 +57,10 @@ class Pairs:
         """Relative gaps h_ij = |r_ij|/σ_ij − 1 (negative for an overlap), shape (M,)."""
         return self.distances / self.sigma - 1.0
 
+    def smallest_gap(self) -> float:
+        """The smallest relative gap h_ij, +inf when there is no pair."""
+        return float(self.gaps.min()) if len(self) else float("inf")
+
     def subset(self, mask: np.ndarray) -> "Pairs":
         """The pairs selected by a boolean mask or an index array."""
         return Pairs(self.i[mask], self.j[mask], self.vectors[mask], self.distances[mask],

@@ -11,15 +11,20 @@ box                         (d,) float64     box side lengths
 contacts                    (M, 2) int64     contact pairs (i < j) among stable particles
 forces                      (M,) float64     contact force magnitudes, mean 1
 rattlers                    (N,) bool        True for rattlers
-converged                   () bool          both convergence criteria met
+converged                   () bool          the run ended at a jamming point (`stop_reason`)
 iterations                  () int64         number of LPs solved
 status                      () str           one sentence on how the run ended
+stop_reason                 () str           `calippso.history.StopReason` value
+notes                       () str           the notes of the run, one per line
 wall_time                   () float64       seconds from the call to the verified result
 force_balance               () float64       max_i |Σ_j f_ij n_ij| / mean force (stable i)
 dual_normalization          () float64       Σ λ_ij σ_ij² over contacts (1 up to round-off)
 solver                      () str           backend name
 history_<column>            (records,)       one entry per stage, see `HISTORY_COLUMNS`
 ==========================  ===============  ===============================================
+
+Files written before `stop_reason` and `notes` were stored still load: the reason is read
+from the status sentence (`calippso.history.reason_from_status`) and the notes are empty.
 """
 
 from __future__ import annotations
@@ -31,44 +36,14 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import save_npz_atomic
+from .history import (HISTORY_COLUMNS, HISTORY_DTYPE, StopReason, empty_history,
+                      reason_from_status)
 from .packing import Packing
 
-__all__ = ["JammingResult", "load_result", "HISTORY_COLUMNS", "empty_history"]
+__all__ = ["JammingResult", "load_result", "HISTORY_COLUMNS", "empty_history", "StopReason"]
 
-#: Columns of `JammingResult.history` (a numpy structured array, one record per stage:
-#: every LP, the Newton stage if it ran, and the force clean-up LP if one was needed).
-HISTORY_COLUMNS: dict[str, tuple[object, str]] = {
-    "stage": ("U8", "'guess' (a contact network read from the input, before any LP), "
-                    "'lp', 'newton' (contact equations solved and certified) or 'cleanup'"),
-    "wall_time": (np.float64, "seconds since the call to jam, at the end of this iteration"),
-    "solver_time": (np.float64, "seconds inside the LP solver for this iteration, retried and "
-                                "discarded attempts included"),
-    "sqrt_gamma_minus_1": (np.float64, "√Γ* − 1, the relative diameter growth of this LP"),
-    "max_displacement": (np.float64, "max |s_iμ| over non-rattlers, in mean diameters"),
-    "rows": (np.int64, "pair constraints (rows) in the LP"),
-    "step_bound": (np.float64, "bound on each displacement component, in mean diameters"),
-    "n_contacts": (np.int64, "contacts among non-rattlers after this LP"),
-    "isostaticity_gap": (np.int64, "N_c − d (N_s − 1) − 1 after this LP"),
-    "force_balance": (np.float64, "max |Σ f n| / mean force over stable particles"),
-    "min_gap": (np.float64, "smallest h_ij = |r_ij|/σ_ij − 1 after the update"),
-    "phi": (np.float64, "packing fraction after the update"),
-}
-
-_HISTORY_DTYPE = np.dtype([(name, dtype) for name, (dtype, _) in HISTORY_COLUMNS.items()])
-
-
-def empty_history() -> np.ndarray:
-    """A history array with no records (dtype with the `HISTORY_COLUMNS` fields)."""
-    return np.zeros(0, dtype=_HISTORY_DTYPE)
-
-
-def history_from_records(records: list[dict]) -> np.ndarray:
-    """Build the structured history array from a list of per-iteration dicts."""
-    history = np.zeros(len(records), dtype=_HISTORY_DTYPE)
-    for k, record in enumerate(records):
-        for name in HISTORY_COLUMNS:
-            history[name][k] = record[name]
-    return history
+#: Separator of the notes in the stored ``notes`` string (no note holds a newline).
+_NOTES_SEPARATOR = "\n"
 
 
 @dataclass(eq=False)
@@ -87,10 +62,15 @@ class JammingResult:
     rattlers : ndarray, shape (N,), bool
         Particles removed recursively for having fewer than d + 1 contacts.
     converged : bool
-        The run reached the jamming point: √Γ − 1 < tol_gamma and max |s| over non-rattlers
-        < tol_s, or the Newton stage's certificate proved it (`calippso.newton`).
+        The run ended at a jamming point (``stop_reason.jammed``): either an LP met the
+        tolerances (√Γ − 1 < tol_gamma and max |s| over non-rattlers < tol_s,
+        `StopReason.CONVERGED`), or the Newton stage's certificate proved the jamming point
+        of the contact network (`StopReason.CERTIFIED_NEWTON`, `StopReason.NETWORK_FIRST`,
+        see `calippso.newton`). A certified run does not check the tolerances: its last
+        history record is the Newton stage's own move.
     status : str
-        One sentence on how the run ended (and any repair that was applied).
+        One sentence on how the run ended, for humans: the stop reason, the last step, the
+        network, and the notes.
     iterations : int
         Number of LPs solved (including a final force clean-up LP, if one was needed); 0
         when the network-first stage certified the input's own contact network.
@@ -106,6 +86,11 @@ class JammingResult:
         Σ λ_ij σ_ij² over contacts of the last LP (1 up to round-off).
     solver : str
         The backend that solved the last LP ("none" when no LP was needed).
+    stop_reason : StopReason or None
+        Why the loop stopped, for programs; None for a result that does not say (made by
+        hand, or an old file whose status names no reason).
+    notes : list of str
+        What the run repaired, retried or tried on the way (each a clause of `status`).
     """
 
     packing: Packing
@@ -120,6 +105,8 @@ class JammingResult:
     force_balance: float = float("nan")
     dual_normalization: float = float("nan")
     solver: str = ""
+    stop_reason: StopReason | None = None
+    notes: list[str] = field(default_factory=list)
 
     @property
     def d(self) -> int:
@@ -211,6 +198,8 @@ class JammingResult:
             "force_balance": np.array(self.force_balance),
             "dual_normalization": np.array(self.dual_normalization),
             "solver": np.array(self.solver),
+            "stop_reason": np.array("" if self.stop_reason is None else self.stop_reason.value),
+            "notes": np.array(_NOTES_SEPARATOR.join(self.notes)),
         }
         for name in HISTORY_COLUMNS:
             arrays[f"history_{name}"] = self.history[name]
@@ -238,7 +227,7 @@ class JammingResult:
         if missing:
             raise ValueError(f"not a calippso result file: missing keys {missing}")
         records = len(arrays["history_wall_time"]) if "history_wall_time" in arrays else 0
-        history = np.zeros(records, dtype=_HISTORY_DTYPE)
+        history = np.zeros(records, dtype=HISTORY_DTYPE)
         for name in HISTORY_COLUMNS:
             key = f"history_{name}"
             if key in arrays:
@@ -247,19 +236,29 @@ class JammingResult:
         def scalar(key, default, kind):
             return kind(arrays[key][()]) if key in arrays else default
 
+        status = scalar("status", "", str)
+        stored_reason = scalar("stop_reason", "", str)
+        if stored_reason:
+            stop_reason = StopReason(stored_reason)
+        else:
+            steps = [stage for stage in history["stage"] if stage != "cleanup"]
+            stop_reason = reason_from_status(status, steps[-1] if steps else "")
+        notes = scalar("notes", "", str)
         return cls(
             packing=Packing(arrays["positions"], arrays["diameters"], arrays["box"]),
             contacts=np.asarray(arrays["contacts"], dtype=np.int64).reshape(-1, 2),
             forces=np.asarray(arrays["forces"], dtype=np.float64),
             rattlers=np.asarray(arrays["rattlers"], dtype=bool),
             converged=scalar("converged", False, bool),
-            status=scalar("status", "", str),
+            status=status,
             iterations=scalar("iterations", 0, int),
             history=history,
             wall_time=scalar("wall_time", float("nan"), float),
             force_balance=scalar("force_balance", float("nan"), float),
             dual_normalization=scalar("dual_normalization", float("nan"), float),
             solver=scalar("solver", "", str),
+            stop_reason=stop_reason,
+            notes=notes.split(_NOTES_SEPARATOR) if notes else [],
         )
 
 

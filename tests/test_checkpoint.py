@@ -1,6 +1,7 @@
 """jam(..., checkpoint=path): state saved after every LP, exact resumption, even after SIGKILL."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -92,9 +93,10 @@ def test_checkpoint_of_another_input_is_refused(tmp_path):
         return record["iteration"] == 2
 
     jam(random_sequential_addition(32, 2, 0.4, seed=1), checkpoint=path, callback=stop)
-    with pytest.raises(ValueError, match="another input"):
+    with pytest.raises(ValueError, match="checkpoint of another run; it differs in input "):
         jam(start_configuration(), checkpoint=path)
-    with pytest.raises(ValueError, match="another input"):
+    with pytest.raises(ValueError, match=r"it differs in step_growth \(checkpoint 4.0, this "
+                                         r"call 3.0\)"):
         jam(random_sequential_addition(32, 2, 0.4, seed=1), checkpoint=path, step_growth=3.0)
 
 
@@ -103,3 +105,15 @@ def test_a_file_that_is_not_a_checkpoint_is_refused(tmp_path):
     np.savez(path, positions=np.zeros((3, 2)))
     with pytest.raises(ValueError, match="not a jam checkpoint"):
         jam(start_configuration(), checkpoint=path)
+
+
+def test_a_checkpoint_of_the_old_layout_is_refused_in_one_line(tmp_path):
+    """Jam checkpoints written before jam shared the generators' checkpoint design (keys
+    "signature" and "format_version") are refused, naming the file."""
+    path = tmp_path / "old.npz"
+    np.savez(path, signature=np.array("abc"), format_version=np.array(2),
+             positions=np.zeros((3, 2)))
+    expected = f"^{re.escape(str(path))}: a jam checkpoint of an older calippso"
+    with pytest.raises(ValueError, match=expected) as error:
+        jam(start_configuration(), checkpoint=path)
+    assert "\n" not in str(error.value)

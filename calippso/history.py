@@ -1,0 +1,318 @@
+"""The history of one `calippso.jam` run, in one place.
+
+One `Record` per stage of the run: every LP of the loop ("lp"), the force clean-up LP
+("cleanup"), every contact network guessed from the input ("guess") and every certified
+Newton stage ("newton"). `History` keeps them in order with the run's notes (what was
+repaired, retried or tried), prints them when verbose, and stores them as the structured
+array `JammingResult.history`. `StopReason` says why the loop stopped, and `status_sentence`
+turns it, the last step and the notes into the one sentence users read.
+"""
+
+from __future__ import annotations
+
+import enum
+import time
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from .contacts import isostaticity_gap
+
+__all__ = ["StopReason", "Record", "History", "HISTORY_COLUMNS", "HISTORY_DTYPE",
+           "empty_history", "history_from_records", "status_sentence", "reason_from_status",
+           "STALL_LPS"]
+
+#: The loop stops as stalled (not converged) after this many LPs without progress
+#: (`History.stalled`).
+STALL_LPS = 25
+#: `History.stalled` compares the displacements of this many first and last LPs of the window.
+STALL_ENDS = 5
+
+#: Columns of `JammingResult.history` (a numpy structured array, one record per stage:
+#: every LP, the Newton stage if it ran, and the force clean-up LP if one was needed).
+HISTORY_COLUMNS: dict[str, tuple[object, str]] = {
+    "stage": ("U8", "'guess' (a contact network read from the input, before any LP), "
+                    "'lp', 'newton' (contact equations solved and certified) or 'cleanup'"),
+    "wall_time": (np.float64, "seconds since the call to jam, at the end of this iteration"),
+    "solver_time": (np.float64, "seconds inside the LP solver for this iteration, retried and "
+                                "discarded attempts included"),
+    "sqrt_gamma_minus_1": (np.float64, "√Γ* − 1, the relative diameter growth of this LP"),
+    "max_displacement": (np.float64, "max |s_iμ| over non-rattlers, in mean diameters"),
+    "rows": (np.int64, "pair constraints (rows) in the LP"),
+    "step_bound": (np.float64, "bound on each displacement component, in mean diameters"),
+    "n_contacts": (np.int64, "contacts among non-rattlers after this LP"),
+    "isostaticity_gap": (np.int64, "N_c − d (N_s − 1) − 1 after this LP"),
+    "force_balance": (np.float64, "max |Σ f n| / mean force over stable particles"),
+    "min_gap": (np.float64, "smallest h_ij = |r_ij|/σ_ij − 1 after the update"),
+    "phi": (np.float64, "packing fraction after the update"),
+}
+
+#: The structured dtype of `JammingResult.history` (fields `HISTORY_COLUMNS`).
+HISTORY_DTYPE = np.dtype([(name, dtype) for name, (dtype, _) in HISTORY_COLUMNS.items()])
+
+
+class StopReason(enum.Enum):
+    """Why `calippso.jam` stopped. The first three end at a jamming point (``converged``)."""
+
+    #: An LP met the tolerances: √Γ − 1 < tol_gamma and max |s| < tol_s over stable
+    #: particles, with the step bound limiting nothing.
+    CONVERGED = "converged"
+    #: The Newton stage solved the contact equations of an LP's isostatic network and its
+    #: certificate proved the jamming point; the loop ended there, without another LP.
+    CERTIFIED_NEWTON = "certified_newton"
+    #: The input's own contact network was certified by the Newton stage, with no LP.
+    NETWORK_FIRST = "network_first"
+    #: ``max_iters`` LPs were solved without convergence.
+    MAX_ITERS = "max_iters"
+    #: The last `STALL_LPS` LPs gained nothing in Γ and their displacements did not shrink.
+    STALLED = "stalled"
+    #: The callback returned True.
+    STOPPED_BY_CALLBACK = "stopped_by_callback"
+
+    @property
+    def jammed(self) -> bool:
+        """Whether the run ended at a jamming point (`JammingResult.converged`)."""
+        return self in (StopReason.CONVERGED, StopReason.CERTIFIED_NEWTON,
+                        StopReason.NETWORK_FIRST)
+
+
+@dataclass(frozen=True)
+class Record:
+    """One stage of a run; the fields are the `HISTORY_COLUMNS` (same names, units and
+    meaning). Lengths are in mean input diameters."""
+
+    stage: str
+    wall_time: float
+    solver_time: float
+    sqrt_gamma_minus_1: float
+    max_displacement: float
+    rows: int
+    step_bound: float
+    n_contacts: int
+    isostaticity_gap: int
+    force_balance: float
+    min_gap: float
+    phi: float
+
+    def as_dict(self) -> dict:
+        """The record as a dict (what ``jam(..., callback=...)`` receives, with more keys)."""
+        return asdict(self)
+
+
+class History:
+    """The records and notes of one run, in order.
+
+    Parameters
+    ----------
+    d : int
+        Dimension (for the isostaticity gaps).
+    start : float
+        `time.perf_counter()` at the call to `jam`: records' wall times count from it.
+    verbose : bool
+        Print every record as it is added (a table with a header line).
+    """
+
+    def __init__(self, d: int, start: float, verbose: bool = False) -> None:
+        self.d = d
+        self.start = start
+        self.verbose = verbose
+        self.records: list[Record] = []
+        self.notes: list[str] = []
+
+    # ------------------------------------------------------------------ adding
+    def note(self, text: str) -> None:
+        """Add a note: a clause of the status sentence, and an entry of `JammingResult.notes`."""
+        self.notes.append(text)
+
+    def add_lp(self, *, stage: str, solver_time: float, gamma: float, max_displacement: float,
+               rows: int, step_bound: float, n_contacts: int, n_stable: int,
+               force_balance: float, min_gap: float, phi: float) -> Record:
+        """The record of an LP ("lp" or "cleanup"); `gamma` is the LP's Γ* − 1."""
+        return self._add(Record(
+            stage=stage, wall_time=self.elapsed(), solver_time=solver_time,
+            sqrt_gamma_minus_1=float(np.sqrt(1.0 + gamma) - 1.0),
+            max_displacement=max_displacement, rows=rows, step_bound=step_bound,
+            n_contacts=n_contacts,
+            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d),
+            force_balance=force_balance, min_gap=min_gap, phi=phi))
+
+    def add_newton(self, *, seconds: float, sqrt_gamma_minus_1: float,
+                   max_displacement: float, n_contacts: int, n_stable: int,
+                   force_balance: float, min_gap: float, phi: float) -> Record:
+        """The record of a certified Newton stage (no step bound; rows are the contacts)."""
+        return self._add(Record(
+            stage="newton", wall_time=self.elapsed(), solver_time=seconds,
+            sqrt_gamma_minus_1=sqrt_gamma_minus_1, max_displacement=max_displacement,
+            rows=n_contacts, step_bound=float("nan"), n_contacts=n_contacts,
+            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d),
+            force_balance=force_balance, min_gap=min_gap, phi=phi))
+
+    def add_guess(self, *, seconds: float, rows: int, n_contacts: int, n_stable: int,
+                  min_gap: float, phi: float) -> Record:
+        """The record of a guessed contact network (nothing moves; rows are its pairs)."""
+        return self._add(Record(
+            stage="guess", wall_time=self.elapsed(), solver_time=seconds,
+            sqrt_gamma_minus_1=0.0, max_displacement=0.0, rows=rows,
+            step_bound=float("nan"), n_contacts=n_contacts,
+            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d),
+            force_balance=float("nan"), min_gap=min_gap, phi=phi))
+
+    def correct_min_gap(self, min_gap: float) -> None:
+        """Replace the last record's `min_gap` (after a final round-off shrink)."""
+        self.records[-1] = replace(self.records[-1], min_gap=min_gap)
+
+    def elapsed(self) -> float:
+        """Seconds since the call to `jam` (a resumed run counts the time before)."""
+        return time.perf_counter() - self.start
+
+    def _add(self, record: Record) -> Record:
+        self.records.append(record)
+        if self.verbose:
+            print_record(record, len(self.records))
+        return record
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def last(self) -> Record:
+        """The last record."""
+        return self.records[-1]
+
+    @property
+    def lps_solved(self) -> int:
+        """LPs solved so far (records of the LP loop and of the force clean-up)."""
+        return sum(record.stage in ("lp", "cleanup") for record in self.records)
+
+    def last_step(self) -> Record:
+        """The loop's last step: the last record that is not the force clean-up LP (whose
+        step is never taken)."""
+        return [record for record in self.records if record.stage != "cleanup"][-1]
+
+    def stalled(self, tol_gamma: float) -> bool:
+        """The last `STALL_LPS` LPs gained less than `tol_gamma` in √Γ − 1 and the largest
+        displacements of their last `STALL_ENDS` are no smaller than half of their first."""
+        lps = [record for record in self.records if record.stage == "lp"][-STALL_LPS:]
+        if len(lps) < STALL_LPS:
+            return False
+        steps = [record.max_displacement for record in lps]
+        return (max(record.sqrt_gamma_minus_1 for record in lps) < tol_gamma
+                and min(steps[-STALL_ENDS:]) >= 0.5 * min(steps[:STALL_ENDS]))
+
+    # ------------------------------------------------------------------ storage
+    def to_array(self) -> np.ndarray:
+        """The records as a structured array with the `HISTORY_COLUMNS` fields."""
+        return history_from_records([record.as_dict() for record in self.records])
+
+    def restore(self, columns: Mapping[str, np.ndarray], notes: list[str]) -> None:
+        """Continue from stored records and notes (a checkpoint); wall times go on from the
+        last record's.
+
+        Parameters
+        ----------
+        columns : mapping of str to ndarray, shape (records,)
+            One array per `HISTORY_COLUMNS` name (`to_array` or its columns).
+        notes : list of str
+        """
+        self.records = [Record(**{name: columns[name][k].item() for name in HISTORY_COLUMNS})
+                        for k in range(len(columns["stage"]))]
+        self.notes = list(notes)
+        if self.records:
+            self.start -= self.records[-1].wall_time
+
+
+def empty_history() -> np.ndarray:
+    """A history array with no records (dtype with the `HISTORY_COLUMNS` fields)."""
+    return np.zeros(0, dtype=HISTORY_DTYPE)
+
+
+def history_from_records(records: list[dict]) -> np.ndarray:
+    """Build the structured history array from a list of per-stage dicts (`Record.as_dict`)."""
+    history = np.zeros(len(records), dtype=HISTORY_DTYPE)
+    for k, record in enumerate(records):
+        for name in HISTORY_COLUMNS:
+            history[name][k] = record[name]
+    return history
+
+
+def print_record(record: Record, number: int) -> None:
+    """Print one record as a table row (after the header, for the first one)."""
+    if number == 1:
+        print(f"{'#':>4} {'stage':>7} {'rows':>8} {'sqrtG-1':>9} {'max|s|':>9} {'bound':>8} "
+              f"{'Nc':>7} {'iso':>5} {'balance':>8} {'min gap':>9} {'phi':>12} {'LP s':>7} "
+              f"{'total s':>8}")
+    print(f"{number:4d} {record.stage:>7} {record.rows:8d} {record.sqrt_gamma_minus_1:9.2e} "
+          f"{record.max_displacement:9.2e} {record.step_bound:8.1e} {record.n_contacts:7d} "
+          f"{record.isostaticity_gap:5d} {record.force_balance:8.1e} {record.min_gap:9.2e} "
+          f"{record.phi:12.9f} {record.solver_time:7.2f} {record.wall_time:8.2f}", flush=True)
+
+
+#: How `status_sentence` begins for each reason (`reason_from_status` reads them back).
+_HEADS = {
+    StopReason.NETWORK_FIRST: "Jammed: the input's own contact network certified, with no LP",
+    StopReason.CONVERGED: "Jammed: converged after {lps} LPs",
+    StopReason.CERTIFIED_NEWTON: "Jammed: converged after {lps} LPs",
+    StopReason.STOPPED_BY_CALLBACK: "Stopped by the callback after {lps} LPs",
+    StopReason.STALLED: ("Stalled after {lps} LPs: the last {stall} gained nothing in Gamma "
+                         "and their displacements did not shrink"),
+    StopReason.MAX_ITERS: "Not converged after {lps} LPs (max_iters)",
+}
+
+
+def status_sentence(reason: StopReason, lps_solved: int, last_step: Record, n_stable: int,
+                    isostaticity_gap: int, notes: list[str]) -> str:
+    """The one sentence on how a run ended: why it stopped, its last step, the network, and
+    the notes.
+
+    Parameters
+    ----------
+    reason : StopReason
+    lps_solved : int
+        LPs of the run (`JammingResult.iterations`).
+    last_step : Record
+        The loop's last step (`History.last_step`): a Newton stage is quoted by its own move.
+    n_stable : int
+        Stable particles of the final network.
+    isostaticity_gap : int
+        N_c − d (N_s − 1) − 1 of the final network.
+    notes : list of str
+        Appended after "Notes:", separated by semicolons.
+    """
+    if n_stable == 0:
+        tail = "no stable particle (every particle is a rattler)"
+    elif isostaticity_gap == 0:
+        tail = "isostatic"
+    else:
+        kind = "hyperstatic" if isostaticity_gap > 0 else "hypostatic"
+        tail = f"{kind} (isostaticity gap {isostaticity_gap:+d})"
+    if last_step.stage == "newton":
+        # the Newton stage's own move: the certificate, not the tolerances, ends the run
+        step = (f"the Newton stage moved stable particles by up to "
+                f"{last_step.max_displacement:.1e} and grew the diameters by "
+                f"sqrt(Gamma)-1 = {last_step.sqrt_gamma_minus_1:.1e}")
+    else:
+        step = (f"sqrt(Gamma)-1 = {last_step.sqrt_gamma_minus_1:.1e}, "
+                f"max|s| = {last_step.max_displacement:.1e}")
+    head = _HEADS[reason].format(lps=lps_solved, stall=STALL_LPS)
+    sentence = f"{head} ({step}); {tail}."
+    if notes:
+        sentence += " Notes: " + "; ".join(notes) + "."
+    return sentence
+
+
+def reason_from_status(status: str, last_stage: str) -> StopReason | None:
+    """The `StopReason` of a status sentence written by `status_sentence` (result files saved
+    before results stored their reason), or None when the sentence says none.
+
+    Parameters
+    ----------
+    status : str
+    last_stage : str
+        Stage of the run's last record that is not "cleanup": a run that converged with a
+        Newton stage last counts as `StopReason.CERTIFIED_NEWTON`.
+    """
+    for reason, head in _HEADS.items():
+        if status.startswith(head.split("{")[0]):
+            if reason is StopReason.CONVERGED and last_stage == "newton":
+                return StopReason.CERTIFIED_NEWTON
+            return reason
+    return None

@@ -1,0 +1,319 @@
+"""The contact network of a packing, its certificate, and the stage that finishes a run.
+
+`ContactNetwork` is a value: the contacts between stable particles, their forces, the
+rattlers. The functions here take a configuration (a `NeighborSearch`, lengths in mean
+diameters) and a network and return new values, never changing their arguments; when they
+repair something they also return the note that says so, for the run's status.
+
+- `certify_network`: the jamming point of an isostatic network by Newton's method
+  (`calippso.newton`), accepted only with its certificate (positive forces, no other overlap).
+- `touching_network`: at a degenerate jamming point, the touching pairs as the network when
+  the LP duals missed contacts.
+- `polished_forces`: forces refined by least squares on the equilibrium equations.
+- `remove_roundoff_overlaps`: all diameters shrunk by the round-off overlap left at the end.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from .contacts import (force_balance, isostaticity_gap, polish_forces, positive_self_stress,
+                       remove_rattlers)
+from .neighbors import NeighborSearch, Pairs, shrink_to_margin
+from .newton import Refinement, refine_isostatic
+from .rattlers import separate_rattlers
+
+__all__ = ["ContactNetwork", "Certified", "RoundoffShrink", "network_key", "network_balance",
+           "overlaps_outside", "certify_network", "touching_network", "polished_forces",
+           "remove_roundoff_overlaps", "NEWTON_OVERLAP_TOLERANCE", "GEOMETRIC_CONTACT_GAP",
+           "ROUNDOFF_SHRINK_MARGIN"]
+
+#: A pair outside the contact network may overlap by at most this relative gap at a Newton
+#: solution (round-off); more means the network is not the jammed one.
+NEWTON_OVERLAP_TOLERANCE = 1e-12
+#: Pairs closer than this relative gap count as touching (`touching_network`, and the pairs a
+#: guessed network must not leave out, `certify_network`).
+GEOMETRIC_CONTACT_GAP = 1e-11
+#: `remove_roundoff_overlaps` leaves the closest pair this relative gap (four units of
+#: round-off).
+ROUNDOFF_SHRINK_MARGIN = 4 * np.finfo(float).eps
+
+
+@dataclass(frozen=True, eq=False)
+class ContactNetwork:
+    """Contacts between stable particles and their forces.
+
+    Attributes
+    ----------
+    i, j : ndarray, shape (M,), int64
+        The contacts' particles (i < j).
+    forces : ndarray, shape (M,)
+        Force magnitudes f = μ/2 in the LP's normalisation (not normalised to mean 1).
+    rattlers : ndarray, shape (N,), bool
+        Particles outside the network.
+    normalization : float
+        Σ λ σ² over the contacts (1 up to round-off for LP duals; NaN for a guessed network
+        before its forces are known).
+    solver : str
+        The backend whose duals gave the network ("none" for one that no LP gave).
+    from_lp : bool
+        The network and forces are an LP's duals (a force clean-up LP can then repair them).
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    forces: np.ndarray
+    rattlers: np.ndarray
+    normalization: float
+    solver: str
+    from_lp: bool
+
+    @property
+    def n_contacts(self) -> int:
+        """Number of contacts M."""
+        return int(self.i.shape[0])
+
+    @property
+    def n_stable(self) -> int:
+        """Number of stable (non-rattler) particles."""
+        return int(self.rattlers.size - self.rattlers.sum())
+
+
+def network_key(i: np.ndarray, j: np.ndarray, n: int) -> str:
+    """A digest of a contact network (its sorted pair keys i N + j, N particles)."""
+    return hashlib.sha256(np.sort(i * n + j).tobytes()).hexdigest()
+
+
+def network_balance(search: NeighborSearch, network: ContactNetwork) -> float:
+    """max over stable particles of |Σ_j f_ij n_ij| / mean force, at the geometry of `search`."""
+    current = search.pairs_of(network.i, network.j)
+    return force_balance(network.rattlers.size, current.i, current.j,
+                         current.vectors / current.distances[:, None], network.forces,
+                         ~network.rattlers)
+
+
+def overlaps_outside(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                     contact_keys: np.ndarray) -> tuple[NeighborSearch, Pairs, np.ndarray]:
+    """The neighbour search of a configuration, its pairs near contact, and which of those
+    overlap beyond `NEWTON_OVERLAP_TOLERANCE` without being a contact.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    contact_keys : ndarray, shape (M,), int64
+        Sorted keys i N + j of the contacts.
+
+    Returns
+    -------
+    search : NeighborSearch
+    close : Pairs
+        `NeighborSearch.pairs_near_contact`.
+    overlapping : ndarray, shape (len(close),), bool
+    """
+    search = NeighborSearch(positions, diameters, box)
+    close = search.pairs_near_contact()
+    is_contact = np.isin(close.i * positions.shape[0] + close.j, contact_keys)
+    return search, close, ~is_contact & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
+
+
+@dataclass(frozen=True, eq=False)
+class Certified:
+    """A certified jamming point (`certify_network`).
+
+    Attributes
+    ----------
+    positions : ndarray, shape (N, d)
+        The jamming point's centres (mean diameters).
+    diameters : ndarray, shape (N,)
+    search : NeighborSearch
+        The neighbour search of that configuration.
+    network : ContactNetwork
+        The network with the certificate's self-stress as forces (``from_lp=False``).
+    balance : float
+        Its force balance (`network_balance`).
+    min_gap : float
+        Smallest relative gap of the configuration (+inf if no pair is near contact).
+    refinement : Refinement
+        Newton's own account (iterations, factorisations, residual, growth, move).
+    """
+
+    positions: np.ndarray
+    diameters: np.ndarray
+    search: NeighborSearch
+    network: ContactNetwork
+    balance: float
+    min_gap: float
+    refinement: Refinement
+
+
+def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                    network: ContactNetwork, *, guessed: bool = False,
+                    refined: Refinement | None = None) -> tuple[Certified | None, str]:
+    """Solve the contact equations of an isostatic network and certify the solution.
+
+    Certified means: every force positive and no other pair overlapping beyond
+    `NEWTON_OVERLAP_TOLERANCE` (see `calippso.newton`). Rattlers that the moved cages now
+    overlap are first moved out of the way (`calippso.rattlers.separate_rattlers`). A
+    `guessed` network (not an LP's) must also be the whole contact network: another touching
+    pair of stable particles (h < `GEOMETRIC_CONTACT_GAP`) means a degenerate (hyperstatic)
+    packing, left to the LPs.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Current centres (mean diameters).
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    network : ContactNetwork
+        Its forces are not used.
+    guessed : bool
+        The network was guessed from the input, not read from an LP's duals.
+    refined : Refinement, optional
+        Newton's solution from `positions`, when already computed (`calippso.network_first`).
+
+    Returns
+    -------
+    (Certified or None, str)
+        The certified point and "", or None and why it failed.
+    """
+    n = positions.shape[0]
+    if refined is None:
+        refined = refine_isostatic(positions, diameters, box, network.i, network.j,
+                                   ~network.rattlers)
+    if refined is None:
+        return None, "Newton did not converge or the Jacobian is singular"
+    order = np.sort(network.i * n + network.j)
+    moved = refined.positions
+    search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order)
+    if refined.positive and overlapping.any() and np.all(
+            network.rattlers[close.i[overlapping]] | network.rattlers[close.j[overlapping]]):
+        # only rattlers overlap: the cage moved under a rattler that touched it
+        separated = separate_rattlers(moved, refined.diameters, box, network.rattlers)
+        if separated is not None:
+            moved = separated
+            search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order)
+    touching = 0
+    if guessed:
+        stable = ~network.rattlers
+        outside = ~np.isin(close.i * n + close.j, order)
+        touching = int(np.count_nonzero(outside & (close.gaps < GEOMETRIC_CONTACT_GAP)
+                                        & stable[close.i] & stable[close.j]))
+    if not refined.positive:
+        return None, "a non-positive force"
+    if overlapping.any():
+        return None, f"{int(overlapping.sum())} other pair(s) would overlap"
+    if touching:
+        return None, f"{touching} other pair(s) touch (a hyperstatic packing)"
+    current = search.pairs_of(network.i, network.j)
+    weights = current.sigma**2 / current.distances
+    certified = ContactNetwork(network.i, network.j, refined.forces, network.rattlers,
+                               float(refined.forces @ weights), network.solver, from_lp=False)
+    return Certified(moved, refined.diameters, search, certified,
+                     network_balance(search, certified), close.smallest_gap(), refined), ""
+
+
+def touching_network(search: NeighborSearch, network: ContactNetwork, balance: float, d: int,
+                     balance_tolerance: float) -> tuple[ContactNetwork, float, str | None]:
+    """The touching pairs as the contact network, when the LP's duals missed contacts.
+
+    At a degenerate jammed point (crystals, other hyperstatic packings) the LP has many
+    optimal dual solutions, and a vertex solution may put its weight on a few rows only,
+    leaving the others, and particles, looking like non-contacts and rattlers. When the LP
+    network is hypostatic or has no stable particle, and the pairs that touch
+    (h < `GEOMETRIC_CONTACT_GAP`) give a network with more stable particles (or as many,
+    and more contacts), the touching network is used instead, with the positive
+    self-stress near uniform forces that `positive_self_stress` finds, if there is one and
+    it balances to `balance_tolerance`. Otherwise the LP network is kept.
+
+    Returns
+    -------
+    (ContactNetwork, float, str or None)
+        The network, its force balance, and the note when the touching network was taken.
+    """
+    n = network.rattlers.size
+    if network.n_stable > 0 and isostaticity_gap(network.n_contacts, network.n_stable, d) >= 0:
+        return network, balance, None
+    close = search.pairs_near_contact()
+    touching = close.subset(close.gaps < GEOMETRIC_CONTACT_GAP)
+    rattlers, kept = remove_rattlers(n, d, touching.i, touching.j)
+    touching = touching.subset(kept)
+    n_stable_touching = int(np.count_nonzero(~rattlers))
+    if (n_stable_touching, len(touching)) <= (network.n_stable, network.n_contacts):
+        return network, balance, None
+    normals = touching.vectors / touching.distances[:, None]
+    weights = touching.sigma**2 / touching.distances
+    forces = positive_self_stress(n, touching.i, touching.j, normals, weights)
+    if forces is None:
+        return network, balance, None
+    new_balance = force_balance(n, touching.i, touching.j, normals, forces, ~rattlers)
+    if new_balance > balance_tolerance:
+        return network, balance, None
+    note = (f"contacts taken from the touching pairs (h < {GEOMETRIC_CONTACT_GAP:g}): the LP "
+            f"duals are degenerate here; forces are a positive self-stress near uniform")
+    return (ContactNetwork(touching.i, touching.j, forces, rattlers, float(forces @ weights),
+                           network.solver, from_lp=False), new_balance, note)
+
+
+def polished_forces(search: NeighborSearch, network: ContactNetwork,
+                    balance: float) -> tuple[np.ndarray, float, str | None]:
+    """Forces refined by least squares on the equilibrium equations, if that helps.
+
+    Returns
+    -------
+    (ndarray, float, str or None)
+        Forces, shape (M,), their balance, and the note when the polished forces are kept
+        (all positive and better balanced); otherwise the network's own forces and `balance`.
+    """
+    geometry = search.pairs_of(network.i, network.j)
+    normals = geometry.vectors / geometry.distances[:, None]
+    weights = geometry.sigma**2 / geometry.distances
+    polished = polish_forces(network.rattlers.size, geometry.i, geometry.j, normals, weights,
+                             network.forces)
+    new_balance = force_balance(network.rattlers.size, geometry.i, geometry.j, normals,
+                                polished, ~network.rattlers)
+    if np.all(polished > 0) and new_balance < balance:
+        return (polished, new_balance,
+                f"forces polished by least squares (balance {balance:.1e} -> {new_balance:.1e})")
+    return network.forces, balance, None
+
+
+@dataclass(frozen=True, eq=False)
+class RoundoffShrink:
+    """All diameters shrunk to remove the round-off overlaps of a final configuration.
+
+    Attributes
+    ----------
+    factor : float
+        The factor on every diameter (< 1).
+    search : NeighborSearch
+        The configuration with the shrunk diameters.
+    min_gap : float
+        Its smallest relative gap (+inf if no pair is near contact).
+    note : str
+    """
+
+    factor: float
+    search: NeighborSearch
+    min_gap: float
+    note: str
+
+
+def remove_roundoff_overlaps(search: NeighborSearch) -> RoundoffShrink | None:
+    """The shrink that leaves no overlap (`calippso.neighbors.shrink_to_margin`, closest
+    pair `ROUNDOFF_SHRINK_MARGIN` apart), or None when no pair overlaps."""
+    close = search.pairs_near_contact()
+    if not len(close):
+        return None
+    worst = float(close.gaps.min())
+    if worst >= 0:
+        return None
+    factor = shrink_to_margin(worst, ROUNDOFF_SHRINK_MARGIN)
+    shrunk = NeighborSearch(search.positions, search.diameters * factor, search.box)
+    note = (f"diameters scaled by 1 - {1 - factor:.1e} to remove round-off overlaps (worst gap "
+            f"{worst:.1e})")
+    return RoundoffShrink(factor, shrunk, shrunk.pairs_near_contact().smallest_gap(), note)
