@@ -14,7 +14,7 @@ from click.testing import CliRunner
 import calippso
 from calippso import Packing
 from calippso.cli import LPProgress, cli, main
-from calippso.result import HISTORY_COLUMNS, history_from_records
+from calippso.history import HISTORY_COLUMNS, history_from_records
 
 
 def _run(capfd, *argv) -> tuple[int, str, str]:
