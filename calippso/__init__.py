@@ -18,6 +18,7 @@ _LAZY = {
     "JamSettings": ("calippso.settings", "JamSettings"),
     "JammingError": ("calippso.errors", "JammingError"),
     "JammingResult": ("calippso.result", "JammingResult"),
+    "StopReason": ("calippso.history", "StopReason"),
     "load_result": ("calippso.result", "load_result"),
     "read": ("calippso.io", "read"),
     "write": ("calippso.io", "write"),

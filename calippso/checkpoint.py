@@ -11,8 +11,8 @@ is flushed to disk, and is then renamed over `path`, so a run killed at any mome
 SIGKILL) leaves either the previous checkpoint or the new one, never a torn file.
 
 A checkpoint remembers what it belongs to: the kind of run, its parameters and digests of its
-inputs (`digest`). A call whose inputs differ refuses the file with a ValueError that names
-the difference, instead of silently continuing someone else's run.
+inputs (`calippso.atomic.digest`). A call whose inputs differ refuses the file with a
+ValueError that names the difference, instead of silently continuing someone else's run.
 
 This module imports numpy and `calippso.atomic` only, so that the Numba generators can use it
 without the LP machinery.
@@ -20,7 +20,6 @@ without the LP machinery.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import time
@@ -30,7 +29,7 @@ import numpy as np
 
 from .atomic import save_npz_atomic
 
-__all__ = ["Checkpoint", "digest", "FORMAT_VERSION"]
+__all__ = ["Checkpoint", "FORMAT_VERSION"]
 
 #: Version of the file layout; a file with another version is refused.
 FORMAT_VERSION = 1
@@ -38,16 +37,6 @@ FORMAT_VERSION = 1
 _SIGNATURE, _VERSION = "_signature", "_version"
 #: Keys of a `calippso.jam` checkpoint written before jam used this design.
 _OLD_JAM_KEYS = ("signature", "format_version")
-
-
-def digest(*arrays: np.ndarray) -> str:
-    """SHA-256 of the shapes and float64 bytes of `arrays`: identifies a configuration."""
-    h = hashlib.sha256()
-    for array in arrays:
-        array = np.ascontiguousarray(array, dtype=np.float64)
-        h.update(str(array.shape).encode())
-        h.update(array.tobytes())
-    return h.hexdigest()
 
 
 class Checkpoint:

@@ -20,7 +20,8 @@ from typing import Callable
 
 import numpy as np
 
-from .checkpoint import Checkpoint, digest
+from .atomic import digest
+from .checkpoint import Checkpoint
 from .contacts import contact_mask, force_balance, isostaticity_gap, remove_rattlers
 from .errors import JammingError
 from .history import HISTORY_COLUMNS, History, Record, StopReason, status_sentence

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import os
 
+from calippso.atomic import digest
 from calippso.checkpoint import Checkpoint as _Checkpoint
-from calippso.checkpoint import digest
 
 __all__ = ["Checkpoint", "digest"]
 

@@ -259,7 +259,7 @@ def test_every_backend_finds_every_contact_of_a_crystal(solver):
     result = jam(start, solver=solver)
     assert_rigid_and_balanced(result)
     assert result.n_contacts == lattices.CONTACTS_PER_PARTICLE["fcc"] * start.n // 2
-    assert result.isostaticity_gap > 0 and "hyperstatic" in result.status
+    assert result.isostaticity_gap > 0
     assert result.phi == pytest.approx(start.phi / 0.99**3, rel=1e-12)
 
 

@@ -27,18 +27,15 @@ from conftest import (BALANCE_TOLERANCE, OVERLAP_TOLERANCE, assert_jammed,
 # ----------------------------------------------------------------------------- invariants
 
 def assert_rigid(result) -> None:
-    """Jammed, isostatic or hyperstatic, and the status says which (small or ordered packings
-    can carry redundant contacts)."""
+    """Jammed, isostatic or hyperstatic (small or ordered packings can carry redundant
+    contacts)."""
     assert_rigid_and_balanced(result)
     assert result.n_contacts > 0, result.status
-    if result.isostaticity_gap == 0:
-        assert result.isostatic
-    else:
-        assert f"hyperstatic (isostaticity gap +{result.isostaticity_gap})" in result.status
+    assert result.isostatic or result.isostaticity_gap > 0
 
 
 def assert_crystal(result, lattice: str, caged: int = 0) -> None:
-    """A jammed crystal: every lattice contact found, hyperstatic, and reported as such."""
+    """A jammed crystal: every lattice contact found, hyperstatic."""
     assert_rigid_and_balanced(result)
     packing = result.packing
     n_stable = packing.n - caged
@@ -48,7 +45,6 @@ def assert_crystal(result, lattice: str, caged: int = 0) -> None:
     assert result.n_contacts == expected
     gap = expected - packing.d * (n_stable - 1) - 1
     assert gap > 0 and result.isostaticity_gap == gap
-    assert "hyperstatic" in result.status
 
 
 # ----------------------------------------------------------------------------- inputs

