@@ -72,12 +72,12 @@ def main() -> None:
         diameters = dist.bidisperse(n, 1.4, 0.5) if d == 2 else dist.monodisperse(n)
         result, wall, cpu = timed(lambda: generators.lubachevsky_stillinger(
             diameters, d=d, target_pressure=1e5, seed=1))
-        print(f"{d:>2} {n:>6} {result.collisions:>11} {wall:>7.1f} {cpu:>7.1f} "
-              f"{result.collisions / cpu:>11.3g} {result.packing.phi:>8.5f} "
+        print(f"{d:>2} {n:>6} {result.steps:>11} {wall:>7.1f} {cpu:>7.1f} "
+              f"{result.steps / cpu:>11.3g} {result.packing.phi:>8.5f} "
               f"{result.reduced_pressure:>9.3g}")
-        figures["ls"].append({"d": d, "n": n, "collisions": int(result.collisions),
+        figures["ls"].append({"d": d, "n": n, "collisions": int(result.steps),
                               "wall_time": wall, "cpu_time": cpu,
-                              "collisions_per_cpu_second": result.collisions / cpu,
+                              "collisions_per_cpu_second": result.steps / cpu,
                               "phi": result.packing.phi,
                               "reduced_pressure": float(result.reduced_pressure)})
 
@@ -86,10 +86,10 @@ def main() -> None:
     for tau in (1e-3, 1e-4):
         result, wall, cpu = timed(lambda: generators.force_biased(
             dist.monodisperse(FB_SIZE), 3, contraction_rate=tau, seed=1))
-        print(f"{tau:>7.0e} {result.collisions:>6} {wall:>7.1f} {cpu:>7.1f} "
+        print(f"{tau:>7.0e} {result.steps:>6} {wall:>7.1f} {cpu:>7.1f} "
               f"{result.packing.phi:>8.5f}")
         figures["fb"].append({"d": 3, "n": FB_SIZE, "contraction_rate": tau,
-                              "steps": int(result.collisions), "wall_time": wall,
+                              "steps": int(result.steps), "wall_time": wall,
                               "cpu_time": cpu, "phi": result.packing.phi})
     if args.json:
         args.json.write_text(json.dumps(figures, indent=1))

@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 import calippso
+from calippso import protocols
 from common import random_sequential_addition
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -45,9 +46,9 @@ def ls_input(d: int, n: int, pressure: float, seed: int, start: str = "poisson",
 
     sizes = (generators.diameters.bidisperse(n, 1.4, 0.5, seed=seed) if d == 2
              else generators.diameters.monodisperse(n))
-    if start == "fb":
-        sizes = generators.force_biased(sizes, d, contraction_rate=1e-3, seed=seed).packing
-    return generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure, seed=seed,
+    begin = ({"start": generators.force_biased(sizes, d, contraction_rate=1e-3, seed=seed).packing}
+             if start == "fb" else {"diameters": sizes, "d": d})
+    return generators.lubachevsky_stillinger(**begin, target_pressure=pressure, seed=seed,
                                              final_growth_rate=final_growth_rate).packing
 
 
@@ -64,9 +65,12 @@ def parse_options(pairs: list[str]) -> dict:
 
 
 def row(name: str, packing: calippso.Packing, backend: str, max_iters: int,
-        options: dict) -> dict:
-    """One run of `jam`: the figures of its table row."""
+        options: dict, precompress: float | None = None) -> dict:
+    """One run of `jam` (after `calippso.protocols.precompress` to `precompress`, if given,
+    whose time counts): the figures of its table row."""
     start = time.perf_counter()
+    if precompress is not None:
+        packing = protocols.precompress(packing, precompress).packing
     result = calippso.jam(packing, solver=backend, max_iters=max_iters, **options)
     total = time.perf_counter() - start
     history = result.history
@@ -116,6 +120,8 @@ def main() -> None:
     parser.add_argument("--max-iters", type=int, default=500)
     parser.add_argument("--random", nargs="*", default=[],
                         help="random starts to generate, as d:N:phi (seed 1)")
+    parser.add_argument("--precompress", type=float, default=None, metavar="P",
+                        help="compress every input by LS to reduced pressure P before jam")
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                         help="further jam options, e.g. max_step=0.3 newton=False")
     parser.add_argument("--cache", type=Path, default=None,
@@ -147,7 +153,7 @@ def main() -> None:
     runs = []
     for name, packing in inputs:
         for backend in args.backends:
-            runs.append(row(name, packing, backend, args.max_iters, options))
+            runs.append(row(name, packing, backend, args.max_iters, options, args.precompress))
             print(line(runs[-1]), flush=True)
     if len(runs) > 1:
         lps, seconds = sum(run["lps"] for run in runs), sum(run["total"] for run in runs)

@@ -44,7 +44,7 @@ def run_one(n: int, gamma: float, seed: int, checkpoint: Path | None = None,
             "eps_rot_used": options.get("eps_rot", float(rigid_body_eps_rot(gamma))),
             "initial_density_used": result.extra["initial_density"],
             "phi": packing.phi, "contact_p2": contact_alignment(packing),
-            "S": packing.nematic_order(), "steps": result.collisions, "wall_time": wall,
+            "S": packing.nematic_order(), "steps": result.steps, "wall_time": wall,
             "phi_first_meeting": float(meetings[0]) if len(meetings) else None,
             "min_distance_ratio": min_distance_ratio(packing), "status": result.status}
 

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from .ensemble import DISTRIBUTIONS, PROTOCOLS, make_diameters
+from .protocols import DISTRIBUTIONS, PROTOCOLS, make_diameters
 from .settings import INTERIOR_POINT_SOLVERS, NETWORK_FIRST_MODES
 from .solvers import backend_names
 
@@ -217,7 +217,7 @@ def _generation_record(protocol: str, generation, output: Path) -> tuple[dict, s
         "d": packing.d,
         "phi": packing.phi,
         "reduced_pressure": generation.reduced_pressure,
-        "collisions": generation.collisions,
+        "steps": generation.steps,
         "wall_time": generation.wall_time,
         "status": generation.status,
         "output": str(output),
@@ -282,7 +282,7 @@ def generate_ls(
     sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
     generation = generators.lubachevsky_stillinger(
         sizes,
-        d=d,
+        d,
         target_pressure=pressure,
         growth_rate=growth_rate,
         final_growth_rate=final_growth_rate,
@@ -374,13 +374,14 @@ def generate_mls(
 
     if input_path is not None:
         with naming(input_path):
-            start = calippso.read(input_path)
+            start = {"start": calippso.read(input_path)}
     else:
-        sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
-        start = generators.poisson(sizes, d, 0.3, seed)
+        start = {"diameters": make_diameters(n, distribution, ratio=ratio, std=std, seed=seed),
+                 "d": d}
     with naming(input_path):
         generation = generators.closest_jamming(
-            start, final_rate=final_rate, seed=seed, progress=out.progress, checkpoint=checkpoint
+            **start, final_rate=final_rate, seed=seed, progress=out.progress,
+            checkpoint=checkpoint
         )
     with naming(output):
         written = calippso.write(generation.packing, output)
@@ -451,7 +452,7 @@ def generate_spherocylinders(n, aspect_ratio, contraction_rate, initial_density,
         "initial_density": generation.extra["initial_density"],
         "phi": packing.phi,
         "nematic_order": packing.nematic_order(),
-        "steps": generation.collisions,
+        "steps": generation.steps,
         "wall_time": generation.wall_time,
         "status": generation.status,
         "output": str(output),
@@ -647,12 +648,12 @@ def jam_with_progress(packing, progress: bool, **options):
 
 
 def _jam_record(result, source, output: Path | None) -> dict:
-    from .ensemble import summary_record
+    from .analysis.record import run_record
 
     return {
         "command": "jam",
         "input": str(source),
-        **summary_record(result),
+        **run_record(result),
         "output": None if output is None else str(output),
     }
 
@@ -702,7 +703,8 @@ def _jam_record(result, source, output: Path | None) -> dict:
     type=positive(float),
     default=None,
     help="First compress a loose input by Lubachevsky-Stillinger MD to this reduced pressure "
-    "(e.g. 1e5), then run the LP loop.",
+    "(e.g. 1e5), then run the LP loop; with --checkpoint that stage keeps its own state file "
+    "(*.precompress.npz).",
 )
 @click.option(
     "--network-first",
@@ -730,12 +732,21 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
     """
     import calippso
 
+    from . import protocols
+
     network = None
     if network_path is not None:
         with naming(network_path):
             network = _contacts_of(network_path)
+    compression = None
     with naming(input_path):
         packing = calippso.read(input_path)
+        if precompress_pressure is not None:
+            compression = protocols.precompress(
+                packing, precompress_pressure,
+                checkpoint=protocols.precompress_checkpoint(checkpoint))
+            note = protocols.precompress_note(packing, compression)
+            packing = compression.packing
         result = jam_with_progress(
             packing,
             out.progress,
@@ -744,14 +755,21 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
             tol_gamma=tol_gamma,
             tol_s=tol_s,
             max_iters=max_iters,
-            precompress_pressure=precompress_pressure,
             network_first=network_first,
             network=network,
             checkpoint=checkpoint,
         )
     with naming(output):
         written = calippso.write(result, output)
-    return _jam_record(result, input_path, written), f"{result.summary()}\n-> {written}"
+    record = _jam_record(result, input_path, written)
+    text = f"{result.summary()}\n-> {written}"
+    if compression is not None:
+        record["precompress"] = {"note": note, "phi": compression.packing.phi,
+                                 "reduced_pressure": compression.reduced_pressure,
+                                 "steps": compression.steps,
+                                 "wall_time": compression.wall_time}
+        text = f"{note}\n{text}"
+    return record, text
 
 
 @cli.command()
@@ -910,6 +928,13 @@ def convert(source, target, out):
 )
 @final_growth_rate_option
 @click.option(
+    "--precompress",
+    type=positive(float),
+    default=None,
+    help="Compress every start by Lubachevsky-Stillinger MD to this reduced pressure before "
+    "jamming it (for loose fb and poisson starts), e.g. 1e5.",
+)
+@click.option(
     "--packings",
     type=positive(int),
     default=4,
@@ -955,6 +980,7 @@ def ensemble(
     seed,
     pressure,
     final_growth_rate,
+    precompress,
     packings,
     solver,
     output,
@@ -975,13 +1001,18 @@ def ensemble(
         std=std,
         pressure=pressure,
         final_growth_rate=final_growth_rate,
+        precompress=precompress,
         solver=solver,
     )
     seeds = range(seed, seed + packings)
     if scheduler is not None:
-        table = runs.run_on_scheduler(
-            spec, packings, seeds=seeds, out_dir=output, address=scheduler, progress=out.progress
-        )
+        try:
+            table = runs.run_on_scheduler(spec, packings, seeds=seeds, out_dir=output,
+                                          address=scheduler, progress=out.progress)
+        except ImportError:  # dask.distributed missing
+            raise click.UsageError(
+                "--scheduler needs dask.distributed: pip install 'calippso[ensemble]'"
+            ) from None
     else:
         table = runs.run(
             spec, packings, seeds=seeds, out_dir=output, workers=workers, progress=out.progress

@@ -1,13 +1,16 @@
 """Ensembles: many independent generate → jam → analyse runs, on local processes or Dask.
 
-Every packing is one task, `make_one(spec, seed, state_dir)`, which generates and jams it
-and sends back an `Outcome` (the arrays of the jammed packing, or the error). The calling
+Every packing is one task, `make_one(spec, seed, state_dir)`, which makes its start
+(`calippso.protocols.make_start`, then `calippso.protocols.precompress` if the spec asks for
+it), jams it and sends back an `Outcome` (the arrays of the jammed packing, or the error). The calling
 process writes every result file itself, as soon as each task comes back:
 ``out_dir/packing_<seed>.npz`` atomically (the full `JammingResult` plus the start's keys
 ``seed``, ``start_phi``, ``start_reduced_pressure``, ``generation_wall_time``), and
-``out_dir/summary.csv`` (one row per packing, `COLUMNS`) after each finished task. Dask
+``out_dir/summary.csv`` (one row per packing, `COLUMNS`, with the run record of
+`calippso.analysis.run_record`) after each finished task. Dask
 workers therefore need no shared disk. Local workers also save the LS/MLS generator's and
-the jamming loop's state in ``state_<seed>_start.npz`` and ``state_<seed>_jam.npz``; a task
+the jamming loop's state in ``state_<seed>_start.npz`` and ``state_<seed>_jam.npz`` (and
+the precompression's in ``state_<seed>_jam.precompress.npz``); a task
 started again after a crash resumes from them, and they are removed once the packing is
 written.
 
@@ -30,13 +33,16 @@ import io
 import json
 import multiprocessing
 import os
-import time
 import traceback
+import warnings
 from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+
+from .protocols import (DISTRIBUTIONS, PROTOCOLS, EnsembleSpec, make_diameters, make_start,
+                        precompress, precompress_checkpoint)
 
 __all__ = [
     "COLUMNS",
@@ -62,7 +68,9 @@ SUMMARY = "summary.csv"
 #: Name of the file in `out_dir` that records the `EnsembleSpec` of its packings (JSON).
 MANIFEST = "ensemble.json"
 
-#: Columns of the summary table, in order.
+#: Columns of the summary table, in order: the seed, the state of the task, the file and the
+#: start's numbers, then the run record (`calippso.analysis.record.RUN_RECORD_KEYS`) and the
+#: error of a failed task.
 COLUMNS = (
     "seed",
     "state",
@@ -82,149 +90,22 @@ COLUMNS = (
     "rattler_fraction",
     "n_bucklers",
     "force_balance",
+    "min_gap",
     "wall_time",
     "solver",
     "status",
     "error",
 )
 
-PROTOCOLS = ("ls", "fb", "mls", "poisson")
-DISTRIBUTIONS = ("monodisperse", "bidisperse", "lognormal")
-
-
-@dataclass(frozen=True)
-class EnsembleSpec:
-    """What every packing of an ensemble is (only the seed differs).
-
-    Attributes
-    ----------
-    protocol : {"ls", "fb", "mls", "poisson"}
-        How the start is made: Lubachevsky–Stillinger to `pressure`, force-biased, closest
-        jamming (MLS) from random centres, or random centres at packing fraction `phi`
-        scaled to no overlap (jamming from a low-density start).
-    n, d : int
-        Particles and dimension.
-    distribution : {"monodisperse", "bidisperse", "lognormal"}
-        Diameters: equal; 50:50 with size ratio `ratio`; log-normal with std `std`.
-    ratio, std : float
-        Parameters of the distribution.
-    pressure : float
-        LS target reduced pressure.
-    final_growth_rate : float, optional
-        LS only: a slow end, this growth rate from reduced pressure 1e3 on (e.g. 1e-4 with
-        `pressure` 1e7); the start is then a jamming point up to d/p
-        (docs/howto/start-configurations.md).
-    phi : float
-        Packing fraction of the "poisson" start (after removing overlaps it is lower).
-    solver : str
-        LP backend of `calippso.jam`.
-    jam_options : dict
-        Further keyword arguments of `calippso.jam`.
-    """
-
-    protocol: str = "ls"
-    n: int = 128
-    d: int = 3
-    distribution: str = "monodisperse"
-    ratio: float = 1.4
-    std: float = 0.1
-    pressure: float = 1e5
-    final_growth_rate: float | None = None
-    phi: float = 0.3
-    solver: str = "highs"
-    jam_options: dict = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        if self.protocol not in PROTOCOLS:
-            raise ValueError(f"protocol must be one of {PROTOCOLS}, got {self.protocol!r}")
-        if self.distribution not in DISTRIBUTIONS:
-            raise ValueError(
-                f"distribution must be one of {DISTRIBUTIONS}, got {self.distribution!r}"
-            )
-        if int(self.n) < 2 or int(self.d) < 2:
-            raise ValueError(f"need n >= 2 and d >= 2, got n = {self.n}, d = {self.d}")
-        for name in ("ratio", "std", "pressure", "phi"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        if self.final_growth_rate is not None and not self.final_growth_rate > 0:
-            raise ValueError(f"final_growth_rate must be > 0, got {self.final_growth_rate}")
-
-    @classmethod
-    def of(cls, spec: "EnsembleSpec | dict") -> "EnsembleSpec":
-        """An `EnsembleSpec` from itself or from a dict of its fields."""
-        if isinstance(spec, cls):
-            return spec
-        unknown = set(spec) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"unknown ensemble spec keys {sorted(unknown)}")
-        return cls(**spec)
-
-
-def make_diameters(
-    n: int, distribution: str, *, ratio: float = 1.4, std: float = 0.1, seed: int = 0
-) -> np.ndarray:
-    """Diameters from `generators.diameters` by distribution name (see `DISTRIBUTIONS`)."""
-    from generators import diameters
-
-    if distribution == "bidisperse":
-        return diameters.bidisperse(n, ratio=ratio, seed=seed)
-    if distribution == "lognormal":
-        return diameters.lognormal(n, std=std, seed=seed)
-    if distribution == "monodisperse":
-        return diameters.monodisperse(n)
-    raise ValueError(f"distribution must be one of {DISTRIBUTIONS}, got {distribution!r}")
-
-
-def generate_start(spec: EnsembleSpec, seed: int, checkpoint: Path | None = None):
-    """Make the start of one packing; returns (packing, reduced pressure, seconds).
-
-    `checkpoint` is the state file of the LS and MLS generators (resumed if it exists).
-    """
-    import generators
-
-    from .neighbors import contact_shrink
-
-    sizes = make_diameters(spec.n, spec.distribution, ratio=spec.ratio, std=spec.std, seed=seed)
-    if spec.protocol == "ls":
-        made = generators.lubachevsky_stillinger(
-            sizes, d=spec.d, target_pressure=spec.pressure, seed=seed, checkpoint=checkpoint,
-            final_growth_rate=spec.final_growth_rate,
-        )
-    elif spec.protocol == "fb":
-        made = generators.force_biased(sizes, spec.d, seed=seed)
-    elif spec.protocol == "mls":
-        start = generators.poisson(sizes, spec.d, spec.phi, seed)
-        made = generators.closest_jamming(start, seed=seed, checkpoint=checkpoint)
-    else:
-        began = time.perf_counter()
-        packing = generators.poisson(sizes, spec.d, spec.phi, seed)
-        shrink = contact_shrink(packing.positions, packing.diameters, packing.box)
-        packing = packing.scaled_to_phi(packing.phi * shrink**spec.d)
-        return packing, float("nan"), time.perf_counter() - began
-    return made.packing, float(made.reduced_pressure), float(made.wall_time)
 
 
 def summary_record(result) -> dict:
-    """The numbers that describe one `JammingResult` (JSON- and CSV-ready)."""
-    from .analysis.forces import bucklers
+    """Deprecated: `calippso.analysis.record.run_record`, the one record of a run."""
+    warnings.warn("calippso.ensemble.summary_record is deprecated: use "
+                  "calippso.analysis.run_record", DeprecationWarning, stacklevel=2)
+    from .analysis.record import run_record
 
-    return {
-        "n": result.packing.n,
-        "d": result.d,
-        "phi": result.phi,
-        "converged": bool(result.converged),
-        "iterations": int(result.iterations),
-        "isostatic": bool(result.isostatic),
-        "isostaticity_gap": int(result.isostaticity_gap),
-        "n_contacts": result.n_contacts,
-        "n_stable": result.n_stable,
-        "rattler_fraction": result.rattler_fraction,
-        "n_bucklers": int(np.count_nonzero(bucklers(result))),
-        "force_balance": float(result.force_balance),
-        "wall_time": float(result.wall_time),
-        "solver": result.solver,
-        "status": result.status,
-    }
+    return run_record(result)
 
 
 def packing_file(out_dir: Path, seed: int) -> Path:
@@ -290,14 +171,19 @@ def make_one(spec: EnsembleSpec | dict, seed: int, state_dir: str | None = None)
     try:
         spec = EnsembleSpec.of(spec)
         start_state, jam_state = (None, None) if state_dir is None else state_files(state_dir, seed)
-        start, pressure, seconds = generate_start(spec, seed, start_state)
+        made = make_start(spec, seed, checkpoint=start_state)
+        start, seconds = made.packing, made.wall_time
+        if spec.precompress is not None:
+            compressed = precompress(start, spec.precompress,
+                                     checkpoint=precompress_checkpoint(jam_state))
+            start, seconds = compressed.packing, seconds + compressed.wall_time
         result = calippso.jam(start, solver=spec.solver, checkpoint=jam_state, **spec.jam_options)
     except Exception as error:  # a failing packing is recorded, the others go on
         return Outcome.failed(seed, error)
     extra = {
         "seed": np.array(seed),
-        "start_phi": np.array(start.phi),
-        "start_reduced_pressure": np.array(pressure),
+        "start_phi": np.array(made.packing.phi),
+        "start_reduced_pressure": np.array(float(made.reduced_pressure)),
         "generation_wall_time": np.array(seconds),
     }
     return Outcome(seed, arrays={**result.to_arrays(), **extra})
@@ -321,7 +207,9 @@ def store(out_dir: str | os.PathLike, outcome: Outcome) -> dict:
         except Exception as error:  # e.g. a full disk: record the packing as failed
             outcome = Outcome.failed(outcome.seed, error)
         else:
-            for finished in (error_file, *state_files(out_dir, outcome.seed)):
+            start_state, jam_state = state_files(out_dir, outcome.seed)
+            for finished in (error_file, start_state, jam_state,
+                             precompress_checkpoint(jam_state)):
                 finished.unlink(missing_ok=True)
             return _row(outcome.arrays, outcome.seed, path.name)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -337,10 +225,11 @@ def run_one(spec: EnsembleSpec | dict, seed: int, out_dir: str | os.PathLike) ->
 
 def _row(arrays, seed: int, name: str) -> dict:
     """The summary row of the packing whose ``.npz`` keys are `arrays`."""
+    from .analysis.record import run_record
     from .result import JammingResult
 
     row = {"seed": seed, "state": "done", "file": name}
-    row.update(summary_record(JammingResult.from_arrays(arrays)))
+    row.update(run_record(JammingResult.from_arrays(arrays)))
     for key in ("start_phi", "start_reduced_pressure", "generation_wall_time"):
         row[key] = float(arrays[key]) if key in arrays else float("nan")
     return row
@@ -582,12 +471,19 @@ def run_on_scheduler(
     `out_dir` (a folder of this process, relative to its working directory) as soon as it
     arrives, so the workers need no shared disk. `timeout` is the time allowed to connect,
     in seconds.
+
+    Raises
+    ------
+    ImportError
+        If ``distributed`` is not installed.
+    ValueError
+        If the scheduler cannot be reached, or as `run`.
     """
     try:
         from distributed import Client
     except ImportError:
-        raise ValueError(
-            "--scheduler needs dask.distributed: pip install 'calippso[ensemble]'"
+        raise ImportError(
+            "run_on_scheduler needs dask.distributed: pip install 'calippso[ensemble]'"
         ) from None
     try:
         client = Client(address, timeout=f"{timeout}s")

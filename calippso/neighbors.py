@@ -1,6 +1,10 @@
 """Periodic pair search: every pair of particles closer than a cutoff, without any N×N array.
 
 Built on `scipy.spatial.cKDTree` with `boxsize`, which applies the minimum-image convention.
+Why it exists: it is the one pair search of the numpy code (the jamming loop, the analysis,
+the checks of inputs and of generated packings), which queries each configuration a few
+times. The Numba loops keep their own lists (`generators.cells`, and
+`generators.spherocylinders.cells` for rods), rebuilt inside compiled code.
 """
 
 from __future__ import annotations

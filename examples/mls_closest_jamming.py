@@ -23,8 +23,8 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     n = 48 if args.tiny else args.n
 
-    points = generators.poisson(generators.diameters.monodisperse(n), 3, phi=0.3, seed=args.seed)
-    mls = generators.closest_jamming(points, seed=args.seed)
+    mls = generators.closest_jamming(generators.diameters.monodisperse(n), 3, seed=args.seed,
+                                     phi_start=0.3)
     print(
         f"MLS: phi = {mls.packing.phi:.6f}, p = {mls.reduced_pressure:.3g}, "
         f"{mls.wall_time:.1f} s ({mls.status})"

@@ -26,7 +26,7 @@ def main(argv=None) -> None:
     sizes = generators.diameters.lognormal(n, std=args.std, seed=args.seed)
     start = generators.force_biased(sizes, 3, contraction_rate=1e-3, seed=args.seed)
     print(
-        f"FB: phi = {start.packing.phi:.6f} after {start.collisions} steps, {start.wall_time:.1f} s"
+        f"FB: phi = {start.packing.phi:.6f} after {start.steps} steps, {start.wall_time:.1f} s"
     )
     result = calippso.jam(start.packing)
     print(result.summary())

@@ -1,7 +1,15 @@
 """Numba generators of compressed starting configurations (LS, FB, MLS, soft-sphere quench,
 spherocylinders).
 
-Importing this package never imports an LP solver; the generators return `calippso.Packing`.
+One calling convention for the sphere generators::
+
+    f(diameters, d, *, seed=0, ...) -> GenerationResult
+
+A generator that can continue from a configuration (LS, MLS) takes it as ``start=packing``
+instead of diameters and d. `poisson(diameters, d, *, phi, seed)` places random centres and
+returns the `calippso.Packing` itself. The generators build only on calippso's geometry base
+(`calippso.packing`, `calippso.periodic`, `calippso.neighbors`, `calippso.atomic`); importing
+this package never imports an LP solver.
 """
 
 from . import diameters

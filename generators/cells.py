@@ -1,5 +1,8 @@
 """Numba cell lists in d dimensions, used to build Verlet neighbour lists.
 
+Why it exists beside `calippso.neighbors`: the event-driven, force-biased and soft-sphere
+loops rebuild their lists from inside compiled Numba code, which cannot call scipy's tree.
+
 A cubic or rectangular periodic box is cut into n_μ ≥ 1 cells per direction, each at least as
 wide as the search radius, so that every pair within the radius lies in the same or in
 adjacent cells. The adjacent-cell offsets are generated for the dimension at hand (3^d of them,

@@ -140,7 +140,7 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
     Returns
     -------
     GenerationResult
-        `reduced_pressure` is nan (FB has no dynamics); `collisions` counts steps; history
+        `reduced_pressure` is nan (FB has no dynamics); `steps` counts FB steps; history
         holds (step, φ_inner, nan, nominal shrink of the step / σ_nominal,0) every 50 steps;
         `extra`: ``phi_nominal_final``, ``overlap_correction``.
 
@@ -156,7 +156,7 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
     phi_nominal = check_phi(phi_nominal, "phi_nominal")
     tau = check_positive(contraction_rate, "contraction_rate")
     step_size = check_positive(step_size, "step_size")
-    start = poisson(diameters, d, phi_nominal, seed)
+    start = poisson(diameters, d, phi=phi_nominal, seed=seed)
     mean = float(diameters.mean())
     # Units of the mean nominal diameter: nominal diameters s (mean 1) at scale `outer`.
     x = start.positions / mean
@@ -187,6 +187,6 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
     status = (f"nominal and inner diameters met after {steps} steps" if finished else
               f"stopped at max_steps = {max_steps} before the nominal and inner sizes met")
     return GenerationResult(
-        packing=packing, reduced_pressure=float("nan"), collisions=steps,
+        packing=packing, reduced_pressure=float("nan"), steps=steps,
         wall_time=time.perf_counter() - wall, history=make_history(rows), status=status,
         extra={"phi_nominal_final": phi_nominal * outer**d, "overlap_correction": correction})

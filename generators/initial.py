@@ -1,6 +1,8 @@
-"""Random (Poisson) starting configurations."""
+"""Where a generator starts: random (Poisson) centres, or a packing the caller gives."""
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
@@ -8,10 +10,10 @@ from calippso.packing import Packing, ball_volume
 
 from ._checks import check_diameters, check_dimension, check_phi
 
-__all__ = ["poisson"]
+__all__ = ["poisson", "start_of"]
 
 
-def poisson(diameters, d: int, phi: float, seed: int = 0) -> Packing:
+def poisson(diameters, d: int, *, phi: float, seed: int = 0) -> Packing:
     """Uniform random centres in a cubic periodic box; the spheres overlap freely.
 
     Parameters
@@ -28,7 +30,8 @@ def poisson(diameters, d: int, phi: float, seed: int = 0) -> Packing:
     Returns
     -------
     Packing
-        Positions in [0, L)^d.
+        Positions in [0, L)^d. A start, not a run: the one maker that returns a `Packing`
+        rather than a `GenerationResult`.
     """
     diameters = check_diameters(diameters)
     d = check_dimension(d)
@@ -41,3 +44,49 @@ def poisson(diameters, d: int, phi: float, seed: int = 0) -> Packing:
         )
     positions = np.random.default_rng(seed).uniform(0.0, side, size=(diameters.shape[0], d))
     return Packing(positions, diameters, np.full(d, side)).wrapped()
+
+
+def start_of(diameters, d: int | None, start: Packing | None, *, phi: float,
+             seed: int) -> tuple[Packing, bool]:
+    """The packing a generator starts from: `start`, or Poisson centres for `diameters`.
+
+    Parameters
+    ----------
+    diameters : array_like, shape (N,), or None
+        Diameters (length units); None, or the start's own, when `start` is given.
+    d : int or None
+        Dimension; None, or the start's own, when `start` is given.
+    start : Packing or None
+        A configuration to continue from.
+    phi : float
+        Packing fraction of the Poisson centres made when there is no `start`.
+    seed : int
+        Seed of those centres.
+
+    Returns
+    -------
+    Packing
+        The start.
+    bool
+        Whether it was made here from `diameters` (True) or given (False).
+
+    Raises
+    ------
+    ValueError
+        When neither diameters and d nor `start` are given, or they contradict each other.
+    """
+    if isinstance(diameters, Packing) and start is None:  # the calling style before start=
+        warnings.warn("passing the start packing as the first argument is deprecated: pass "
+                      "it as start=packing", DeprecationWarning, stacklevel=3)
+        diameters, start = None, diameters
+    if start is None:
+        if diameters is None:
+            raise ValueError("give diameters and d, or a start configuration as start=")
+        return poisson(diameters, d, phi=phi, seed=seed), True
+    if not isinstance(start, Packing):
+        raise ValueError(f"start must be a calippso.Packing, got {type(start).__name__}")
+    if d is not None and d != start.d:
+        raise ValueError(f"d = {d} contradicts the start's dimension {start.d}")
+    if diameters is not None and not np.array_equal(check_diameters(diameters), start.diameters):
+        raise ValueError("diameters differ from the start's diameters; give one or the other")
+    return start, False

@@ -9,11 +9,11 @@ import numpy as np
 from calippso.neighbors import SAME_PLACE, check_no_duplicates, contact_shrink
 from calippso.packing import Packing
 
-from ._checks import check_diameters, check_dimension, check_positive, remove_roundoff_overlap
+from ._checks import check_positive, remove_roundoff_overlap
 from .checkpoint import Checkpoint, digest
 from ._progress import Progress
 from .edmd import run_window
-from .initial import poisson
+from .initial import start_of
 from .result import GenerationResult, make_history
 
 __all__ = ["lubachevsky_stillinger", "GrowingSpheres"]
@@ -144,20 +144,6 @@ class GrowingSpheres:
         return Packing(self.x.copy(), diameters, self.box), correction
 
 
-def start_packing(packing_or_diameters, d: int | None, seed: int) -> tuple[Packing, bool]:
-    """A `Packing` from either a packing or diameters (Poisson centres at φ = 0.1).
-
-    Returns the packing and whether it came from diameters.
-    """
-    if isinstance(packing_or_diameters, Packing):
-        if d is not None and d != packing_or_diameters.d:
-            raise ValueError(f"d = {d} contradicts the packing's dimension {packing_or_diameters.d}")
-        return packing_or_diameters, False
-    diameters = check_diameters(packing_or_diameters)
-    d = check_dimension(d)
-    return poisson(diameters, d, phi=0.1, seed=seed), True
-
-
 def current_rate(rows: list[tuple], growth_rate: float, final_growth_rate: float | None,
                  slowdown_pressure: float) -> float:
     """The growth rate of the next window: `final_growth_rate` once a window so far (history
@@ -169,10 +155,11 @@ def current_rate(rows: list[tuple], growth_rate: float, final_growth_rate: float
     return growth_rate
 
 
-def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
+def lubachevsky_stillinger(diameters=None, d: int | None = None, *, seed: int = 0,
+                           start: Packing | None = None, phi_start: float = 0.1,
                            growth_rate: float = 1e-2, target_pressure: float = 1e5,
                            temperature: float = 1.0, max_collisions: int | None = None,
-                           seed: int = 0, progress: bool = False, pressure_window: int = 20,
+                           progress: bool = False, pressure_window: int = 20,
                            skin: float = 0.1, final_growth_rate: float | None = None,
                            slowdown_pressure: float = 1e3, checkpoint=None,
                            checkpoint_every: float = 60.0) -> GenerationResult:
@@ -180,13 +167,21 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
 
     Parameters
     ----------
-    packing_or_diameters : Packing or array_like, shape (N,)
-        A start configuration, or diameters. Diameters get uniform random (Poisson) centres
-        in a cubic box; any start that overlaps has all its diameters scaled down by one factor
-        until no pair overlaps (from Poisson points the run therefore starts at a very low
-        density, the "random start, fast LS" protocol; no force-biased stage is run).
+    diameters : array_like, shape (N,), optional
+        Diameters (length units). They get uniform random (Poisson) centres in a cubic box
+        at packing fraction `phi_start`; any start that overlaps has all its diameters scaled
+        down by one factor until no pair overlaps (from Poisson points the run therefore
+        starts at a very low density, the "random start, fast LS" protocol; no force-biased
+        stage is run). Not needed with `start`.
     d : int, optional
         Dimension (≥ 2); required with diameters.
+    seed : int
+        Seed of the Poisson centres (if any) and of the velocities.
+    start : Packing, optional
+        A configuration to compress instead (an LS continuation, or the precompression of
+        `calippso.protocols.precompress`); overlaps are shrunk away as above.
+    phi_start : float
+        Packing fraction of the Poisson centres made from `diameters`.
     growth_rate : float
         dσ/dt for a particle of nominal diameter 1 (mass 1, time unit such that kT = 1 gives
         unit thermal speed per direction). Every diameter grows in proportion to its nominal
@@ -197,8 +192,6 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
         kT; velocities are rescaled to it every two collisions per particle.
     max_collisions : int, optional
         Stop after this many collisions (default: no limit).
-    seed : int
-        Seed of the Poisson centres (if any) and of the velocities.
     progress : bool
         Show a tqdm bar (log10 p); quiet by default.
     pressure_window : int
@@ -252,7 +245,7 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
                              f"{growth_rate:g}")
     if pressure_window < 1:
         raise ValueError(f"pressure_window must be >= 1 collision per particle, got {pressure_window}")
-    start, from_diameters = start_packing(packing_or_diameters, d, seed)
+    start, from_diameters = start_of(diameters, d, start, phi=phi_start, seed=seed)
     state = GrowingSpheres(start, temperature, seed, check_positive(skin, "skin"))
     signature = {"growth_rate": growth_rate, "temperature": temperature, "seed": int(seed),
                  "pressure_window": int(pressure_window), "skin": float(skin),
@@ -309,7 +302,7 @@ def lubachevsky_stillinger(packing_or_diameters, *, d: int | None = None,
             packing = Packing(packing.positions, diameters, packing.box)
             correction += rescaled
     return GenerationResult(
-        packing=packing, reduced_pressure=float(pressure), collisions=state.collisions,
+        packing=packing, reduced_pressure=float(pressure), steps=state.collisions,
         wall_time=earlier_wall + time.perf_counter() - wall, history=make_history(rows),
         status=status,
         extra={"rebuilds": state.rebuilds, "start_shrink": state.start_shrink,

@@ -11,20 +11,26 @@ from calippso.packing import Packing
 from ._checks import check_positive
 from .checkpoint import Checkpoint, digest
 from ._progress import Progress
+from .initial import start_of
 from .ls import GrowingSpheres
 from .result import GenerationResult, make_history
 
 __all__ = ["closest_jamming"]
 
+#: Packing fraction of the Poisson centres MLS starts from when given diameters (the
+#: Baranau–Tallarek protocol's random start).
+START_PHI = 0.3
 
-def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate: float = 1e-4,
+
+def closest_jamming(diameters=None, d: int | None = None, *, seed: int = 0,
+                    start: Packing | None = None, phi_start: float = START_PHI,
+                    initial_rate: float = 10.0, final_rate: float = 1e-4,
                     rate_decrease: float = 2.0, max_pressure: float = 1e12,
                     temperature: float = 0.2, pressure_window: int = 20,
                     max_equilibrations: int = 50, max_windows_per_rate: int = 10_000,
-                    max_collisions: int | None = None,
-                    seed: int = 0, progress: bool = False, skin: float = 0.1,
+                    max_collisions: int | None = None, progress: bool = False, skin: float = 0.1,
                     checkpoint=None, checkpoint_every: float = 60.0) -> GenerationResult:
-    """Jam a packing while staying in its basin: fast growth first, ever slower near jamming.
+    """Jam a start while staying in its basin: fast growth first, ever slower near jamming.
 
     The protocol, in event-driven MD (`GrowingSpheres`, as in LS):
 
@@ -42,8 +48,18 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
 
     Parameters
     ----------
-    packing : Packing
-        Start configuration (an overlapping one is first scaled down to no overlap).
+    diameters : array_like, shape (N,), optional
+        Diameters (length units), given uniform random (Poisson) centres at packing fraction
+        `phi_start`. Not needed with `start`.
+    d : int, optional
+        Dimension (≥ 2); required with diameters.
+    seed : int
+        Seed of the Poisson centres (if any) and of the velocities.
+    start : Packing, optional
+        The configuration whose closest jamming point is sought, instead of Poisson centres.
+        An overlapping start is first scaled down to no overlap.
+    phi_start : float
+        Packing fraction of the Poisson centres made from `diameters`.
     initial_rate, final_rate : float
         Growth rates dσ/dt (nominal diameter 1, mass 1, kT = `temperature`) at the start and
         at the end.
@@ -64,8 +80,6 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
         whole run of the protocol from an FB or LS start.
     max_collisions : int, optional
         Safety limit on the number of collisions (default: none).
-    seed : int
-        Seed of the velocities.
     progress : bool
         Show a tqdm bar (log10 p); quiet by default.
     skin : float
@@ -96,8 +110,7 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
         belongs to another run.
     """
     wall = time.perf_counter()
-    if not isinstance(packing, Packing):
-        raise ValueError(f"packing must be a calippso.Packing, got {type(packing).__name__}")
+    packing, _ = start_of(diameters, d, start, phi=phi_start, seed=seed)
     rate = check_positive(initial_rate, "initial_rate")
     final_rate = check_positive(final_rate, "final_rate")
     if final_rate > rate:
@@ -195,7 +208,7 @@ def closest_jamming(packing: Packing, *, initial_rate: float = 10.0, final_rate:
     saver.save(snapshot())
     result_packing, correction = state.packing()
     return GenerationResult(
-        packing=result_packing, reduced_pressure=float(pressure), collisions=state.collisions,
+        packing=result_packing, reduced_pressure=float(pressure), steps=state.collisions,
         wall_time=earlier_wall + time.perf_counter() - wall, history=make_history(rows),
         status=status,
         extra={"rate": rate, "equilibrations": equilibrations, "rebuilds": state.rebuilds,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -29,8 +30,10 @@ class GenerationResult:
         The final configuration.
     reduced_pressure : float
         Reduced pressure p = βP/ρ at the end (nan where the algorithm has none, e.g. FB).
-    collisions : int
-        Collisions processed (event-driven generators), or steps (force-biased).
+    steps : int
+        Steps the run took: collisions processed (event-driven LS and MLS), force-biased
+        steps (FB, spherocylinder FB) or FIRE steps (soft quench). The deprecated name
+        `collisions` reads the same number.
     wall_time : float
         Seconds spent in the run (compile time of a first call included).
     history : ndarray, structured
@@ -49,14 +52,21 @@ class GenerationResult:
 
     packing: Any
     reduced_pressure: float
-    collisions: int
+    steps: int
     wall_time: float
     history: np.ndarray = field(default_factory=lambda: make_history([]))
     status: str = ""
     extra: dict = field(default_factory=dict)
     contacts: np.ndarray | None = None
 
+    @property
+    def collisions(self) -> int:
+        """Deprecated name of `steps` (it counts FB and FIRE steps too, not only collisions)."""
+        warnings.warn("GenerationResult.collisions is deprecated: use steps", DeprecationWarning,
+                      stacklevel=2)
+        return self.steps
+
     def __repr__(self) -> str:
         return (f"GenerationResult(phi={self.packing.phi:.6f}, "
-                f"reduced_pressure={self.reduced_pressure:.3g}, collisions={self.collisions}, "
+                f"reduced_pressure={self.reduced_pressure:.3g}, steps={self.steps}, "
                 f"wall_time={self.wall_time:.2f} s, status={self.status!r})")

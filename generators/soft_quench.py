@@ -283,7 +283,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         given ones. `contacts`: the overlap network before the shrink (pairs overlapping by
         more than 1e-12 σ) without rattlers, removed recursively (pairs i < j, int64,
         shape (M, 2), sorted lexicographically). `reduced_pressure` is nan (soft spheres
-        have no hard-sphere pressure); `collisions` counts FIRE steps; `history` holds one
+        have no hard-sphere pressure); `steps` counts FIRE steps; `history` holds one
         record per minimisation (FIRE steps so far, φ before the shrink, pressure, nan).
         `extra`: ``pressure`` (final soft pressure, ε / (mean diameter)^d),
         ``minimisations``, ``fire_steps``, ``rebuilds`` (list rebuilds), ``phi_soft`` (φ
@@ -315,7 +315,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     if int(max_steps) != max_steps or max_steps < 1:
         raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
     mean = float(diameters.mean())
-    start = poisson(diameters, d, phi_start, seed)
+    start = poisson(diameters, d, phi=phi_start, seed=seed)
     box = start.box / mean
     nominal = diameters / mean
     _check_box(box, nominal, skin, phi_start, PHI_START_FACTOR * typical)
@@ -402,7 +402,7 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, row
     sizes, correction = remove_roundoff_overlap(positions, diameters, box)
     packing = Packing(positions, sizes, box).wrapped()
     return GenerationResult(
-        packing=packing, reduced_pressure=float("nan"), collisions=system.steps,
+        packing=packing, reduced_pressure=float("nan"), steps=system.steps,
         wall_time=time.perf_counter() - wall, history=make_history(rows), status=status,
         contacts=contacts,
         extra={"pressure": float(pressure), "minimisations": len(rows), "fire_steps": system.steps,

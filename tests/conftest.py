@@ -62,7 +62,7 @@ def mls_jammed():
     import generators
     from configurations import MLS_ARGS, mls_start
 
-    return generators.closest_jamming(mls_start(), **MLS_ARGS)
+    return generators.closest_jamming(start=mls_start(), **MLS_ARGS)
 
 
 @pytest.fixture(scope="session")

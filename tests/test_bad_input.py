@@ -179,17 +179,17 @@ def test_npz_without_packing_keys_is_refused(tmp_path):
     (lambda: generators.lubachevsky_stillinger([], d=3), r"non-empty 1-d array"),
     (lambda: generators.lubachevsky_stillinger(np.ones(64), d=3, growth_rate=-1), r"growth_rate must be a finite number > 0"),
     (lambda: generators.lubachevsky_stillinger(np.ones(64), d=3, target_pressure=np.nan), r"target_pressure must be a finite number > 0"),
-    (lambda: generators.lubachevsky_stillinger(GOOD, d=2), r"d = 2 contradicts the packing's dimension 3"),
+    (lambda: generators.lubachevsky_stillinger(d=2, start=GOOD), r"d = 2 contradicts the start's dimension 3"),
     (lambda: generators.poisson(np.ones(4), 3, phi=0.5), r"too few particles for phi = 0.5"),
     (lambda: generators.poisson(np.ones(4), 3, phi=1.5), r"phi must lie in \(0, 1\)"),
-    (lambda: generators.closest_jamming(np.ones(8)), r"packing must be a calippso.Packing"),
-    (lambda: generators.lubachevsky_stillinger(Packing(_duplicated(), DIAM, BOX)),
+    (lambda: generators.closest_jamming(np.ones(8)), r"dimension d must be an integer >= 2, got d = None"),
+    (lambda: generators.lubachevsky_stillinger(start=Packing(_duplicated(), DIAM, BOX)),
      r"duplicated particles in the input: particles 2 and 5"),
-    (lambda: generators.closest_jamming(Packing(_duplicated_by_a_period(), DIAM, BOX)),
+    (lambda: generators.closest_jamming(start=Packing(_duplicated_by_a_period(), DIAM, BOX)),
      r"duplicated particles in the input: particles 2 and 5"),
-    (lambda: generators.closest_jamming(GOOD, initial_rate=1e-5, final_rate=1e-3), r"final_rate 0.001 exceeds initial_rate 1e-05"),
+    (lambda: generators.closest_jamming(start=GOOD, initial_rate=1e-5, final_rate=1e-3), r"final_rate 0.001 exceeds initial_rate 1e-05"),
 ], ids=["ls-d1", "ls-no-d", "ls-nan", "ls-negative", "ls-empty", "ls-rate", "ls-pressure",
-        "ls-dimension-clash", "poisson-box", "poisson-phi", "mls-not-packing", "ls-duplicates",
+        "ls-dimension-clash", "poisson-box", "poisson-phi", "mls-no-d", "ls-duplicates",
         "mls-duplicates", "mls-rates"])
 def test_generators_refuse(call, pattern):
     with pytest.raises(ValueError, match=pattern):

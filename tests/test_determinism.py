@@ -30,7 +30,7 @@ def generation_digest(result) -> str:
         h.update(np.ascontiguousarray(array).tobytes())
     for name in ("time", "phi", "pressure", "rate"):
         h.update(np.ascontiguousarray(result.history[name]).tobytes())
-    h.update(repr((result.collisions, result.reduced_pressure, result.status)).encode())
+    h.update(repr((result.steps, result.reduced_pressure, result.status)).encode())
     return h.hexdigest()
 
 
@@ -44,13 +44,13 @@ GENERATORS = {
     "ls-d4": lambda: generators.lubachevsky_stillinger(dist.monodisperse(64), d=4,
                                                        target_pressure=1e6, seed=4),
     "mls": lambda: generators.closest_jamming(
-        generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=5), max_pressure=1e8,
+        start=generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=5), max_pressure=1e8,
         final_rate=1e-2, seed=5),
     "fb": lambda: generators.force_biased(dist.monodisperse(64), d=3, seed=6),
     "poisson": lambda: type("R", (), {
         "packing": generators.poisson(dist.lognormal(64, 0.2, seed=7), 3, phi=0.2, seed=7),
         "history": np.zeros(0, dtype=[(n, float) for n in ("time", "phi", "pressure", "rate")]),
-        "collisions": 0, "reduced_pressure": 0.0, "status": ""})(),
+        "steps": 0, "reduced_pressure": 0.0, "status": ""})(),
 }
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import pytest
 
 import calippso
-from calippso import jam
+from calippso import jam, protocols
 from calippso.neighbors import min_gap
 
 from configurations import ls_packing, phi_j, random_sequential_addition
@@ -79,6 +79,6 @@ def test_ls_state_whose_bound_held_particles_back():
     gap, _ = min_gap(points.positions, points.diameters, points.box)
     start = calippso.Packing(points.positions, points.diameters * (1 + gap) * (1 - 1e-9),
                              points.box)
-    result = jam(start, precompress_pressure=1e5, max_iters=200)
+    result = jam(protocols.precompress(start, 1e5).packing, max_iters=200)
     assert_jammed(result)
     assert 0.64 < result.phi < 0.647

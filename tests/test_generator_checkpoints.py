@@ -33,7 +33,7 @@ def assert_same(a, b) -> None:
     np.testing.assert_array_equal(a.packing.diameters, b.packing.diameters)
     np.testing.assert_array_equal(a.packing.box, b.packing.box)
     np.testing.assert_array_equal(a.history, b.history)
-    assert a.collisions == b.collisions
+    assert a.steps == b.steps
     assert a.reduced_pressure == b.reduced_pressure
     assert a.status == b.status
 
@@ -65,7 +65,7 @@ CHILD = textwrap.dedent("""
                                           checkpoint_every=0, **{ls})
     else:
         from configurations import mls_start
-        generators.closest_jamming(mls_start(), checkpoint=path, checkpoint_every=0, **{mls})
+        generators.closest_jamming(start=mls_start(), checkpoint=path, checkpoint_every=0, **{mls})
 """).format(ls=repr(LS_ARGS), mls=repr(MLS_ARGS))
 
 
@@ -131,12 +131,12 @@ def test_mls_killed_with_sigkill_resumes_bit_for_bit(tmp_path, mls_reference):
     # late enough to be past the first pressure threshold (in the rate-decrease phase)
     saved = run_and_kill("mls", path, windows=60)
     assert 60 <= saved < mls_reference.history.shape[0]
-    resumed = generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
+    resumed = generators.closest_jamming(start=mls_start(), checkpoint=path, **MLS_ARGS)
     assert resumed.extra["resumed"]
     assert_same(resumed, mls_reference)
     assert resumed.status.startswith("jammed")
     assert_no_overlap(resumed.packing)
-    again = generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
+    again = generators.closest_jamming(start=mls_start(), checkpoint=path, **MLS_ARGS)
     assert again.extra["resumed"]
     assert_same(again, mls_reference)
 
@@ -149,7 +149,7 @@ def test_finished_run_returns_from_its_checkpoint(tmp_path, ls_reference):
     again = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path, **LS_ARGS)
     assert again.extra["resumed"]
     assert_same(again, ls_reference)
-    assert again.collisions == first.collisions  # nothing was recomputed
+    assert again.steps == first.steps  # nothing was recomputed
 
 
 def test_ls_run_can_be_pushed_to_a_higher_pressure(tmp_path, ls_reference):
@@ -188,7 +188,7 @@ def test_checkpoint_of_another_run_is_refused(tmp_path):
         generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
                                           **{**LS_ARGS, "seed": 99})
     with pytest.raises(ValueError, match="kind \\(checkpoint 'lubachevsky_stillinger'"):
-        generators.closest_jamming(mls_start(), checkpoint=path, **MLS_ARGS)
+        generators.closest_jamming(start=mls_start(), checkpoint=path, **MLS_ARGS)
 
 
 def test_not_a_checkpoint_file_is_refused(tmp_path):
@@ -244,7 +244,7 @@ def test_spherocylinder_run_resumes_bit_for_bit(tmp_path, monkeypatch):
     assert Checkpoint(path, "spherocylinders.force_biased", {}).path.exists()
     monkeypatch.setattr(fb, "_move", real_move)
     resumed = fb.force_biased(**ROD_ARGS, checkpoint=path, checkpoint_every=0)
-    assert reference.collisions > 120
+    assert reference.steps > 120
     np.testing.assert_array_equal(resumed.packing.positions, reference.packing.positions)
     np.testing.assert_array_equal(resumed.packing.axes, reference.packing.axes)
     for field in reference.history.dtype.names:  # field by field: NaN pressures compare equal
@@ -254,7 +254,7 @@ def test_spherocylinder_run_resumes_bit_for_bit(tmp_path, monkeypatch):
     # a finished run is read back, not run again
     again = fb.force_biased(**ROD_ARGS, checkpoint=path)
     np.testing.assert_array_equal(again.packing.positions, reference.packing.positions)
-    assert again.collisions == reference.collisions
+    assert again.steps == reference.steps
 
 
 def test_spherocylinder_checkpoint_of_another_run_is_refused(tmp_path):

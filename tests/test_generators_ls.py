@@ -54,7 +54,7 @@ def test_ls_reaches_target_pressure_without_overlap(d, n, make, phi_range):
 
 def test_ls_from_packing_keeps_box_and_grows():
     start = generators.poisson(dist.lognormal(200, 0.2, seed=2), 3, phi=0.3, seed=2)
-    result = generators.lubachevsky_stillinger(start, target_pressure=1e3, seed=2)
+    result = generators.lubachevsky_stillinger(start=start, target_pressure=1e3, seed=2)
     np.testing.assert_array_equal(result.packing.box, start.box)
     ratio = result.packing.diameters / start.diameters
     np.testing.assert_allclose(ratio, ratio[0], rtol=1e-12)  # growth ∝ nominal diameters
@@ -65,7 +65,7 @@ def test_ls_from_packing_keeps_box_and_grows():
 
 def test_ls_max_collisions_stops_early():
     result = generators.lubachevsky_stillinger(dist.monodisperse(128), d=3, max_collisions=1000)
-    assert result.collisions == 1000 and "max_collisions" in result.status
+    assert result.steps == 1000 and "max_collisions" in result.status
 
 
 def test_ls_slow_end_switches_rate_once_and_keeps_it():

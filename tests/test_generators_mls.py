@@ -43,14 +43,14 @@ def test_mls_rate_schedule(jammed):
 
 def test_mls_max_collisions_and_errors():
     start = generators.poisson(dist.monodisperse(64), 3, phi=0.2, seed=0)
-    result = generators.closest_jamming(start, max_collisions=5000)
-    assert result.collisions == 5000 and "max_collisions" in result.status
+    result = generators.closest_jamming(start=start, max_collisions=5000)
+    assert result.steps == 5000 and "max_collisions" in result.status
     with pytest.raises(ValueError, match="final_rate"):
-        generators.closest_jamming(start, initial_rate=1e-3, final_rate=1e-2)
+        generators.closest_jamming(start=start, initial_rate=1e-3, final_rate=1e-2)
     with pytest.raises(ValueError, match="rate_decrease"):
-        generators.closest_jamming(start, rate_decrease=1.0)
-    with pytest.raises(ValueError, match="packing"):
-        generators.closest_jamming(np.ones(10))
+        generators.closest_jamming(start=start, rate_decrease=1.0)
+    with pytest.raises(ValueError, match="start"):
+        generators.closest_jamming(start=np.ones(10))
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +58,7 @@ def levelled_off():
     # a threshold the pressure (almost) never reaches: the rates end after
     # max_windows_per_rate windows, the final one included
     start = generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=1)
-    return generators.closest_jamming(start, max_pressure=1e300, final_rate=1e-2,
+    return generators.closest_jamming(start=start, max_pressure=1e300, final_rate=1e-2,
                                       max_windows_per_rate=3, seed=1)
 
 
@@ -78,10 +78,10 @@ def test_mls_levelled_off_run_resumes_as_finished(levelled_off, tmp_path):
     start = generators.poisson(dist.monodisperse(64), 3, phi=0.3, seed=1)
     options = dict(max_pressure=1e300, final_rate=1e-2, max_windows_per_rate=3, seed=1,
                    checkpoint=tmp_path / "mls.npz")
-    first = generators.closest_jamming(start, **options)
-    again = generators.closest_jamming(start, **options)
+    first = generators.closest_jamming(start=start, **options)
+    again = generators.closest_jamming(start=start, **options)
     assert again.status == first.status == levelled_off.status
-    assert again.collisions == first.collisions
+    assert again.steps == first.steps
     np.testing.assert_array_equal(again.packing.positions, first.packing.positions)
 
 
@@ -89,4 +89,4 @@ def test_mls_levelled_off_run_resumes_as_finished(levelled_off, tmp_path):
 def test_mls_max_windows_per_rate_must_be_a_positive_integer(bad):
     start = generators.poisson(dist.monodisperse(64), 3, phi=0.2, seed=0)
     with pytest.raises(ValueError, match="max_windows_per_rate must be a positive integer"):
-        generators.closest_jamming(start, max_windows_per_rate=bad)
+        generators.closest_jamming(start=start, max_windows_per_rate=bad)

@@ -35,32 +35,36 @@ def jam_of_start(kind: str, start) -> dict:
     """`calippso.jam` of the start itself, beside the MLS result of the same start.
 
     LS starts are jammed as they are. FB starts (φ ≈ 0.61) are loose: the LP loop alone
-    crawls, so they are compressed first (`precompress_pressure=1e5`). Poisson starts overlap:
+    crawls, so they are compressed first (`calippso.protocols.precompress` to p = 1e5).
+    Poisson starts overlap:
     their diameters are first scaled down by one factor until the closest pair has a gap of
     1e-9 σ (what LS and MLS do with overlapping input), then compressed the same way.
     """
     import calippso
+    from calippso import protocols
 
-    options = {} if kind == "ls" else {"precompress_pressure": 1e5}
+    pressure = None if kind == "ls" else 1e5
     gap, _ = min_gap(start.positions, start.diameters, start.box)
     if gap < 0:
         start = calippso.Packing(start.positions, start.diameters * (1 + gap) * (1 - 1e-9),
                                  start.box)
-    jammed = calippso.jam(start, **options)
+    if pressure is not None:
+        start = protocols.precompress(start, pressure).packing
+    jammed = calippso.jam(start)
     return {"phi_jam_of_start": float(jammed.phi), "isostatic_start": bool(jammed.isostatic),
             "lps_of_start": jammed.iterations, "wall_time_jam_of_start": jammed.wall_time,
-            **{f"jam_of_start_{key}": value for key, value in options.items()}}
+            "jam_of_start_precompress": pressure}
 
 
 def run(kind: str, seed: int, std: float = 0.0) -> dict:
     diameters = dist.lognormal(N, std, seed=seed) if std else dist.monodisperse(N)
     start = make_start(kind, seed, diameters)
-    result = generators.closest_jamming(start, seed=seed)
+    result = generators.closest_jamming(start=start, seed=seed)
     packing = result.packing
     gap, overlapping = min_gap(packing.positions, packing.diameters, packing.box)
     record = {"start": kind, "std": std, "seed": seed, "phi_start": start.phi,
               "phi_mls": packing.phi, "pressure": result.reduced_pressure,
-              "collisions_per_particle": result.collisions / N, "wall_time": result.wall_time,
+              "collisions_per_particle": result.steps / N, "wall_time": result.wall_time,
               "status": result.status, "overlapping_pairs": overlapping}
     try:
         import calippso

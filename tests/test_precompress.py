@@ -1,4 +1,4 @@
-"""`jam(..., precompress_pressure=...)`: LS compression of a loose input, then the LP loop."""
+"""`calippso.protocols.precompress`: LS compression of a loose input, before `jam`."""
 
 import subprocess
 import sys
@@ -10,7 +10,7 @@ from configurations import random_sequential_addition
 
 from calippso import Packing, jam
 from calippso.neighbors import NeighborSearch
-from calippso.precompress import precompress_checkpoint
+from calippso.protocols import precompress, precompress_checkpoint, precompress_note
 
 
 @pytest.fixture(scope="module")
@@ -21,8 +21,13 @@ def loose_bidisperse():
 
 
 @pytest.fixture(scope="module")
-def precompressed(loose_bidisperse):
-    return jam(loose_bidisperse, precompress_pressure=1e5)
+def compressed(loose_bidisperse):
+    return precompress(loose_bidisperse, 1e5)
+
+
+@pytest.fixture(scope="module")
+def precompressed(compressed):
+    return jam(compressed.packing)
 
 
 def test_precompressed_jam_is_a_certified_jammed_packing(loose_bidisperse, precompressed):
@@ -43,10 +48,11 @@ def test_precompression_keeps_particles_box_and_size_ratios(loose_bidisperse, pr
     np.testing.assert_allclose(ratio, ratio[0], rtol=1e-12)
 
 
-def test_status_says_the_input_was_compressed(loose_bidisperse, precompressed):
-    status = precompressed.status
-    assert "compressed by Lubachevsky-Stillinger" in status
-    assert f"phi {loose_bidisperse.phi:.6f}" in status
+def test_the_note_says_the_input_was_compressed(loose_bidisperse, compressed):
+    assert compressed.reduced_pressure >= 1e5
+    note = precompress_note(loose_bidisperse, compressed)
+    assert "compressed by Lubachevsky-Stillinger" in note
+    assert f"phi {loose_bidisperse.phi:.6f} -> {compressed.packing.phi:.6f}" in note
 
 
 def test_overlapping_input_is_refused_before_compression():
@@ -54,23 +60,29 @@ def test_overlapping_input_is_refused_before_compression():
     positions = start.positions.copy()
     positions[1] = positions[0] + np.array([0.5, 0.0, 0.0])
     with pytest.raises(ValueError, match="overlapping particles"):
-        jam(Packing(positions, start.diameters, start.box), precompress_pressure=1e5)
+        precompress(Packing(positions, start.diameters, start.box), 1e5)
 
 
 @pytest.mark.parametrize("pressure", [0.0, -1e5, float("nan")])
 def test_bad_pressure_is_refused(pressure):
     start = random_sequential_addition(16, 2, 0.2, seed=1)
-    with pytest.raises(ValueError, match="precompress_pressure"):
-        jam(start, precompress_pressure=pressure)
+    with pytest.raises(ValueError, match="pressure must be a finite number > 0"):
+        precompress(start, pressure)
 
 
 def test_checkpointed_run_resumes_both_stages(tmp_path):
     start = random_sequential_addition(48, 2, 0.3, seed=2,
                                        diameters=np.where(np.arange(48) < 24, 1.0, 1.4))
     state = tmp_path / "run.npz"
-    first = jam(start, precompress_pressure=1e5, checkpoint=state)
-    assert state.exists() and precompress_checkpoint(state).exists()
-    again = jam(start, precompress_pressure=1e5, checkpoint=state)
+
+    def run():
+        compressed = precompress(start, 1e5, checkpoint=precompress_checkpoint(state))
+        return jam(compressed.packing, checkpoint=state)
+
+    first = run()
+    assert state.exists() and precompress_checkpoint(state) == tmp_path / "run.precompress.npz"
+    assert precompress_checkpoint(state).exists()
+    again = run()
     np.testing.assert_array_equal(first.packing.positions, again.packing.positions)
     np.testing.assert_array_equal(first.contacts, again.contacts)
     assert first.converged and first.isostatic

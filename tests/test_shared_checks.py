@@ -34,6 +34,6 @@ def test_separated_start_is_kept(separation):
 def test_ls_start_shrink_is_the_shared_one():
     generators = pytest.importorskip("generators")
     start = generators.poisson(np.ones(64), 3, phi=0.3, seed=4)
-    run = generators.lubachevsky_stillinger(start, target_pressure=10.0, seed=0)
+    run = generators.lubachevsky_stillinger(start=start, target_pressure=10.0, seed=0)
     assert run.extra["start_shrink"] == contact_shrink(start.positions, start.diameters,
                                                         start.box)

@@ -63,7 +63,7 @@ def test_history_and_extra(runs):
     assert history.dtype.names == ("time", "phi", "pressure", "rate")
     assert len(history) > 2 and np.all(np.diff(history["time"]) >= 0)
     assert history["phi"].max() <= result.packing.phi * (1 + 1e-9)
-    assert result.collisions == int(history["time"][-1])
+    assert result.steps == int(history["time"][-1])
     assert result.extra["meetings"] >= 1
     assert result.extra["phi_nominal"] >= result.packing.phi * (1 - 1e-9)
     assert math.isnan(result.reduced_pressure)

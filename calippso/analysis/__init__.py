@@ -6,7 +6,8 @@ one dimension). Pooling many packings is how exponents are measured in practice.
 Modules: `structure` (contact numbers, rattlers, isostaticity), `gaps` (non-contact gaps),
 `forces` (bucklers, localised and extended forces), `sample` (pooled values and their
 cumulative), `fits` (power-law fits of cumulatives, window rule, bootstrap), `exponents`
-(γ, θ_e, θ_ℓ and reference values), `summary` (`analyze`, everything at once).
+(γ, θ_e, θ_ℓ and reference values), `summary` (`analyze`, everything at once), `record`
+(`run_record`, the flat description of one run).
 """
 
 from .exponents import (REFERENCE_EXPONENTS, UPPER, Exponent, critical_exponents,
@@ -14,6 +15,7 @@ from .exponents import (REFERENCE_EXPONENTS, UPPER, Exponent, critical_exponents
 from .fits import PowerLawFit, fit_cumulative_power_law
 from .forces import bucklers, localized_contacts, normalized_forces, pooled_forces
 from .gaps import DEFAULT_MAX_GAP, gaps, pooled_gaps
+from .record import RUN_RECORD_KEYS, run_record
 from .sample import PooledSample
 from .structure import ContactStatistics, contact_statistics
 from .summary import Analysis, analyze
@@ -22,5 +24,6 @@ __all__ = [
     "Analysis", "ContactStatistics", "DEFAULT_MAX_GAP", "Exponent", "PooledSample",
     "PowerLawFit", "REFERENCE_EXPONENTS", "UPPER", "analyze", "bucklers", "contact_statistics",
     "critical_exponents", "exponent_from_sample", "fit_cumulative_power_law", "gaps",
-    "localized_contacts", "normalized_forces", "pooled_forces", "pooled_gaps", "window_scan",
+    "localized_contacts", "normalized_forces", "pooled_forces", "pooled_gaps", "RUN_RECORD_KEYS",
+    "run_record", "window_scan",
 ]

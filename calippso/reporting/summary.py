@@ -1,4 +1,5 @@
-"""The report's summary: the pooled analysis and one record per run, as strict JSON."""
+"""The report's summary: the pooled analysis and one record per run
+(`calippso.analysis.record.run_record`), as strict JSON."""
 
 from __future__ import annotations
 
@@ -10,24 +11,10 @@ import numpy as np
 
 from ..analysis import Analysis
 from ..analysis.exponents import REFERENCE_EXPONENTS
+from ..analysis.record import run_record
 from ..result import JammingResult
 
 __all__ = ["fit_warnings", "run_record", "summary_dict", "write_json"]
-
-
-def run_record(result: JammingResult) -> dict:
-    """φ, contacts, isostaticity, convergence and timing of one run."""
-    history = result.history
-    return {
-        "n": result.packing.n, "d": result.d, "phi": result.phi,
-        "converged": bool(result.converged), "iterations": int(result.iterations),
-        "solver": result.solver, "wall_time_s": float(result.wall_time),
-        "stable": result.n_stable, "contacts": result.n_contacts,
-        "rattler_fraction": result.rattler_fraction,
-        "isostaticity_gap": result.isostaticity_gap, "force_balance": result.force_balance,
-        "min_gap": float(history["min_gap"][-1]) if history.shape[0] else None,
-        "status": result.status,
-    }
 
 
 def fit_warnings(analysis: Analysis) -> list[str]:

@@ -1,5 +1,8 @@
 """Verlet pair lists for spherocylinders, built with a periodic cell list (Numba).
 
+Why it exists beside `generators.cells`: a rod pair is listed by the distance between the
+shafts, not between the centres, which the sphere lists cannot test.
+
 A pair (i, j) is listed when the shortest distance between the shafts is below
 σ_ij + skin. The cells have a side of at least the largest possible reach between two
 centres, max_i l_i + max_i d_i + skin, so only the 27 neighbouring cells are searched; when the

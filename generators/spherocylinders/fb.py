@@ -398,7 +398,7 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
     GenerationResult
         `packing` is a `SpherocylinderPacking` without overlaps (checked over all pairs with
         the exact shaft distance), in units where every particle has the volume of a sphere
-        of diameter 1. `collisions` counts FB steps; `history` samples (step, φ_in, nan,
+        of diameter 1. `steps` counts FB steps; `history` samples (step, φ_in, nan,
         relative shrink per step); `extra` holds "phi_nominal", "initial_density", "meetings",
         "list_builds", "nematic_order", "composition" and "seed".
 
@@ -555,7 +555,7 @@ def force_biased(n: int, aspect_ratio: float, *, mixture: tuple[int, float] | No
 
     packing = _overlap_free(best, d0, h0, box)
     return GenerationResult(
-        packing=packing, reduced_pressure=math.nan, collisions=step,
+        packing=packing, reduced_pressure=math.nan, steps=step,
         wall_time=earlier_time + time.perf_counter() - started, history=make_history(rows),
         status=status,
         extra={"phi_nominal": total_volume * scale**3, "initial_density": eta0,

@@ -1,0 +1,67 @@
+"""`run_record`: the one flat description of a jamming run, shared by every summary.
+
+The ensemble's ``summary.csv`` rows, the ``runs`` of a report's ``summary.json`` and the
+``--json`` output of ``calippso jam`` all hold these keys (`RUN_RECORD_KEYS`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..result import JammingResult
+from .forces import bucklers
+
+__all__ = ["RUN_RECORD_KEYS", "run_record"]
+
+#: The keys of `run_record`, in order, with their meaning.
+RUN_RECORD_KEYS = {
+    "n": "number of particles N",
+    "d": "dimension d",
+    "phi": "packing fraction of the jammed packing",
+    "converged": "whether the run ended at a jamming point",
+    "iterations": "number of LPs solved",
+    "isostatic": "whether N_c = d (N_s - 1) + 1",
+    "isostaticity_gap": "N_c - d (N_s - 1) - 1 (0 when isostatic)",
+    "n_contacts": "number of contacts N_c between stable particles",
+    "n_stable": "number of stable (non-rattler) particles N_s",
+    "rattler_fraction": "fraction of particles that are rattlers",
+    "n_bucklers": "stable particles with exactly d + 1 contacts",
+    "force_balance": "max over stable particles of |net force| / mean force",
+    "min_gap": "smallest relative gap |r|/sigma - 1 after the last stage (None without history)",
+    "wall_time": "seconds from the call of jam to the verified result",
+    "solver": "LP backend",
+    "status": "one sentence on how the run ended",
+}
+
+
+def run_record(result: JammingResult) -> dict:
+    """The numbers that describe one jamming run, as plain Python values (JSON- and CSV-ready).
+
+    Parameters
+    ----------
+    result : JammingResult
+
+    Returns
+    -------
+    dict
+        The keys of `RUN_RECORD_KEYS`, in that order.
+    """
+    history = result.history
+    return {
+        "n": result.packing.n,
+        "d": result.d,
+        "phi": result.phi,
+        "converged": bool(result.converged),
+        "iterations": int(result.iterations),
+        "isostatic": bool(result.isostatic),
+        "isostaticity_gap": int(result.isostaticity_gap),
+        "n_contacts": int(result.n_contacts),
+        "n_stable": int(result.n_stable),
+        "rattler_fraction": float(result.rattler_fraction),
+        "n_bucklers": int(np.count_nonzero(bucklers(result))),
+        "force_balance": float(result.force_balance),
+        "min_gap": float(history["min_gap"][-1]) if history.shape[0] else None,
+        "wall_time": float(result.wall_time),
+        "solver": result.solver,
+        "status": result.status,
+    }
