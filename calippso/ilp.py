@@ -1,14 +1,18 @@
 """The CALiPPSO loop: iterate linear programs until the packing is jammed.
 
 Each iteration builds the linearised problem of `calippso.lp` for the current configuration,
-solves it, moves the particles by s* and inflates every diameter by √Γ*. The bound on the
+has it solved (`calippso.solvers.policy.SolverPolicy`: retries, fallbacks, warm starts),
+moves the particles by s* and inflates every diameter by √Γ*. The bound on the
 displacements adapts to the previous step (`next_step_bound`): it grows when a stable
 particle was held back by it and shrinks with the displacements as the packing converges,
-which keeps the LP small and never lets the bound stall the approach to jamming.
+which keeps the LP small and never lets the bound stall the approach to jamming. The loop
+stops when an LP meets the tolerances, or when the Newton stage certifies the jamming point
+of an isostatic LP network (`calippso.network.certify_network`); `StopReason` says which.
 
-At the end, contacts and forces come from the duals of an LP solved at the final positions
-(a clean-up LP with rattlers frozen, when the duals of the last step do not balance to
-`balance_tolerance` at the updated positions).
+Before any LP, the network-first stage tries to certify the input's own contact network. At
+the end, the functions of `calippso.network` repair the forces where needed (a clean-up LP
+with rattlers frozen, the touching pairs of a degenerate packing, least squares) and shrink
+away round-off overlaps. Every stage adds a record to the run's `calippso.history.History`.
 """
 
 from __future__ import annotations
@@ -98,9 +102,10 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         True stops the run after an LP or a Newton stage of the loop (the result then has
         ``converged=False``).
     checkpoint : str or PathLike, optional
-        File (``.npz``) where the loop's state is saved atomically after every LP. If it
-        exists, the run resumes from it (same input and settings required, otherwise
-        ValueError) and gives the result the uninterrupted run would have given.
+        File (``.npz``, appended when missing) where the loop's state is saved atomically
+        after every LP (`calippso.checkpoint.Checkpoint`). If it exists, the run resumes from
+        it (same input and settings required, otherwise ValueError naming what differs) and
+        gives the result the uninterrupted run would have given.
     network : array_like, shape (M, 2), int, optional
         A contact network the caller knows (e.g. `GenerationResult.contacts` of a
         soft-sphere quench): pairs of particle indices. It is tried first by the
@@ -122,6 +127,8 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     Returns
     -------
     JammingResult
+        Its `stop_reason` says why the loop stopped, its `notes` what was repaired, retried
+        or tried, and its `status` both in one sentence.
 
     Raises
     ------
