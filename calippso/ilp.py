@@ -37,7 +37,6 @@ from .network_first import SettledNetwork, settle_candidate
 from .network_guess import Candidate, candidate_networks, check_network_hint
 from .newton import Refinement
 from .packing import Packing, wrap
-from .precompress import precompress, precompress_checkpoint
 from .result import JammingResult
 from .settings import JamSettings
 from .solvers import Basis, LPSolution
@@ -54,7 +53,8 @@ SMALL_BOX_MARGIN = 1e-3
 #: Smallest first bound on displacements chosen by `initial_step_bound` (mean diameters).
 INITIAL_STEP_FLOOR = 1e-3
 #: An input whose median nearest-neighbour gap exceeds this (mean diameters) is loose: a run
-#: that does not converge says that `precompress_pressure` is the remedy.
+#: that does not converge says that precompressing it (`calippso.protocols.precompress`) is
+#: the remedy.
 LOOSE_INPUT_GAP = 1e-3
 #: Candidate networks the network-first stage settles at most (each costs a few sparse
 #: factorisations).
@@ -120,9 +120,7 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         ends the run and reaches the caller unchanged. For benchmarks and diagnostics.
     **options
         Further `JamSettings` fields (e.g. ``network_first``, ``initial_step``,
-        ``max_step``, ``contact_threshold``, ``feasibility_tolerance``). ``precompress_pressure=1e5``
-        first compresses a loose input by Lubachevsky–Stillinger MD (`calippso.precompress`);
-        with a checkpoint, that stage keeps its own file beside it (``*.precompress.npz``).
+        ``max_step``, ``contact_threshold``, ``feasibility_tolerance``).
 
     Returns
     -------
@@ -132,6 +130,8 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
 
     Raises
     ------
+    TypeError
+        An unknown option; a removed one (``precompress_pressure``) names its replacement.
     ValueError
         Bad input: wrong shapes, NaN, non-positive sizes, a particle wider than half the box,
         overlapping particles (beyond round-off, `overlap_tolerance`), too few particles to
@@ -147,17 +147,8 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     packing = _as_packing(packing, diameters, box)
     check_enough_particles(packing.n, packing.d)
     hint = None if network is None else check_network_hint(network, packing.n)
-    notes = []
-    if settings.precompress_pressure is not None:
-        scale = packing.mean_diameter
-        check_input_overlaps(NeighborSearch(wrap(packing.positions / scale, packing.box / scale),
-                                            packing.diameters / scale, packing.box / scale),
-                             settings.overlap_tolerance)
-        packing, note = precompress(packing, settings.precompress_pressure,
-                                    precompress_checkpoint(checkpoint))
-        notes.append(note)
-    return _Jammer(packing, settings, callback, checkpoint, start=start, notes=notes,
-                   hint=hint, on_lp=on_lp).run()
+    return _Jammer(packing, settings, callback, checkpoint, start=start, hint=hint,
+                   on_lp=on_lp).run()
 
 
 def _as_packing(packing, diameters, box) -> Packing:
@@ -348,15 +339,13 @@ class _Jammer:
 
     def __init__(self, packing: Packing, settings: JamSettings, callback,
                  checkpoint: str | os.PathLike | None = None, start: float | None = None,
-                 notes: list[str] | None = None, hint: np.ndarray | None = None,
+                 hint: np.ndarray | None = None,
                  on_lp: Callable[[LPAttempt], None] | None = None):
         self.settings = settings
         self.hint = hint
         self.callback = callback
         self.history = History(packing.d, time.perf_counter() if start is None else start,
                                verbose=settings.verbose)
-        for note in notes or []:
-            self.history.note(note)
         self.policy = SolverPolicy(settings, on_lp)
         self.scale = packing.mean_diameter
         self.n, self.d = packing.n, packing.d
@@ -777,8 +766,9 @@ class _Jammer:
                 and self.input_median_gap > LOOSE_INPUT_GAP):
             notes.append(f"the input is loose (median nearest-neighbour gap "
                          f"{self.input_median_gap:.1e} mean diameters), where the LP loop "
-                         f"alone can take hundreds of LPs: precompress_pressure=1e5 (CLI: "
-                         f"--precompress 1e5) first compresses it by LS MD")
+                         f"alone can take hundreds of LPs: "
+                         f"calippso.protocols.precompress(packing, 1e5) first compresses it "
+                         f"by LS MD")
         return notes
 
 

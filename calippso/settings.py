@@ -10,13 +10,21 @@ from dataclasses import dataclass, fields, replace
 
 from .solvers.registry import backend_names, check_backend_name
 
-__all__ = ["JamSettings", "SOLVERS"]   # SOLVERS: deprecated, see __getattr__
+__all__ = ["JamSettings"]   # SOLVERS is deprecated (module __getattr__), not exported
 
 #: Values accepted by ``jam(..., network_first=...)``.
 NETWORK_FIRST_MODES = ("auto", "off", "require")
 
 #: Names accepted by ``jam(..., interior_point=...)`` (HiGHS backend).
 INTERIOR_POINT_SOLVERS = ("auto", "ipx", "hipo")
+
+#: Options `jam` no longer takes, and what replaces each (`JamSettings.from_options` raises
+#: TypeError with this text).
+REMOVED_OPTIONS = {
+    "precompress_pressure": "jam's precompress_pressure option was removed: call "
+                            "calippso.protocols.precompress(packing, pressure) first and jam "
+                            "its .packing",
+}
 
 
 @dataclass(frozen=True)
@@ -86,11 +94,6 @@ class JamSettings:
         of `solvers.highs.HIPO_MIN_COLUMNS` columns or more (d N + 1) when it is installed,
         IPX otherwise.
         All end with a crossover to a vertex.
-    precompress_pressure : float or None
-        If set, first compress the input by Lubachevsky–Stillinger event-driven MD until this
-        reduced pressure (`calippso.precompress`), then run the LP loop from there. For loose
-        inputs (φ well below jamming), where the LP loop alone crawls for hundreds of LPs.
-        The result is the jamming point of the compressed state. None: LP loop only.
     pin : bool
         Fix one particle's displacement to remove the d translational zero modes.
     verbose : bool
@@ -118,7 +121,6 @@ class JamSettings:
     verify_newton: bool = False
     warm_start: bool = True
     interior_point: str = "auto"
-    precompress_pressure: float | None = None
     pin: bool = True
     verbose: bool = False
 
@@ -141,9 +143,6 @@ class JamSettings:
                      "newton_start"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
-        if self.precompress_pressure is not None and not self.precompress_pressure > 0:
-            raise ValueError(
-                f"precompress_pressure must be > 0 or None, got {self.precompress_pressure!r}")
         if self.initial_step is not None and not self.initial_step > 0:
             raise ValueError(f"initial_step must be > 0, got {self.initial_step!r}")
         if not self.min_step <= self.max_step:
@@ -156,6 +155,9 @@ class JamSettings:
     @classmethod
     def from_options(cls, **options) -> "JamSettings":
         """Build settings from keyword options, naming any unknown option in the error."""
+        removed = sorted(options.keys() & REMOVED_OPTIONS.keys())
+        if removed:
+            raise TypeError(REMOVED_OPTIONS[removed[0]])
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(options) - known)
         if unknown:

@@ -6,7 +6,6 @@ are tested in tests/test_faults.py.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, replace
 from types import SimpleNamespace
 

@@ -99,11 +99,13 @@ DUPLICATE = r"duplicated particles in the input: particles 2 and 5 sit at the sa
     (lambda: jam(_duplicated_by_a_period(), DIAM, BOX), ValueError, DUPLICATE),
     (lambda: jam(GOOD, solver="gurobi"), ValueError, r"unknown solver 'gurobi': choose one of highs, clarabel, cvxpy"),
     (lambda: jam(GOOD, tol_gammma=1e-9), TypeError, r"unknown jam option\(s\) \['tol_gammma'\]"),
+    (lambda: jam(GOOD, precompress_pressure=1e5), TypeError,
+     r"precompress_pressure option was removed: call calippso\.protocols\.precompress"),
     (lambda: jam(GOOD, max_iters=0), ValueError, r"max_iters must be a positive integer"),
     (lambda: jam(GOOD, tol_gamma=-1.0), ValueError, r"tol_gamma must be > 0"),
     (lambda: jam(GOOD, GOOD.diameters, GOOD.box), TypeError, r"either a Packing, or positions"),
     (lambda: jam(GOOD.positions), TypeError, r"diameters and box are required"),
-], ids=["real-overlap", "duplicated-particles", "duplicated-one-period-away", "unknown-solver", "unknown-option", "max-iters-zero", "negative-tolerance",
+], ids=["real-overlap", "duplicated-particles", "duplicated-one-period-away", "unknown-solver", "unknown-option", "removed-option", "max-iters-zero", "negative-tolerance",
         "packing-and-arrays", "positions-only"])
 def test_jam_refuses_bad_arguments(call, error, pattern):
     with pytest.raises(error, match=pattern):

@@ -196,6 +196,7 @@ def test_unconverged_loose_input_points_to_precompression():
     loose = random_sequential_addition(64, 3, 0.3, seed=11)
     result = jam(loose, max_iters=3)
     assert not result.converged and result.stop_reason is StopReason.MAX_ITERS
-    assert any(note.startswith("the input is loose") and "precompress_pressure=1e5" in note
+    assert any(note.startswith("the input is loose")
+               and "calippso.protocols.precompress(packing, 1e5)" in note
                for note in result.notes)
     assert not any(note.startswith("the input is loose") for note in jam(loose).notes)
