@@ -13,24 +13,28 @@ Before any LP, the network-first stage tries to certify the input's own contact 
 the end, the functions of `calippso.network` repair the forces where needed (a clean-up LP
 with rattlers frozen, the touching pairs of a degenerate packing, least squares) and shrink
 away round-off overlaps. Every stage adds a record to the run's `calippso.history.History`.
+
+The input is checked by `calippso.inputs`; what an LP's answer says (contacts, rattlers,
+forces, whether the bound held a particle back) is read by `calippso.step`.
 """
 
 from __future__ import annotations
 
 import os
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from typing import Callable
 
 import numpy as np
 
 from .atomic import digest
 from .checkpoint import Checkpoint
-from .contacts import contact_mask, force_balance, isostaticity_gap, remove_rattlers
+from .contacts import isostaticity_gap, remove_rattlers
 from .errors import JammingError
 from .history import HISTORY_COLUMNS, History, Record, StopReason, status_sentence
-from .lp import LinearProgram, build_lp, largest_safe_step, select_pairs
-from .neighbors import SAME_PLACE, NeighborSearch, Pairs, check_no_duplicates
+from .inputs import as_packing, check_enough_particles, check_input_overlaps
+from .lp import build_lp, largest_safe_step, select_pairs
+from .neighbors import NeighborSearch, Pairs
 from .network import (ContactNetwork, certify_network, network_balance, network_key,
                       polished_forces, remove_roundoff_overlaps, touching_network)
 from .network_first import SettledNetwork, settle_candidate
@@ -39,8 +43,9 @@ from .newton import Refinement
 from .packing import Packing, wrap
 from .result import JammingResult
 from .settings import JamSettings
-from .solvers import Basis, LPSolution
+from .solvers import Basis
 from .solvers.policy import LPAttempt, LPFailed, SolverPolicy, next_warm_start
+from .step import Step, analyse, at_bound
 
 __all__ = ["jam", "initial_step_bound", "next_step_bound"]
 
@@ -59,10 +64,6 @@ LOOSE_INPUT_GAP = 1e-3
 #: Candidate networks the network-first stage settles at most (each costs a few sparse
 #: factorisations).
 MAX_NETWORK_GUESSES = 3
-#: A displacement at the bound limits Γ when its reduced cost |(Aᵀμ)_k| exceeds this fraction
-#: of the largest dual (far above the solver's dual feasibility tolerance, far below the
-#: reduced cost of a particle that the bound really holds back).
-BINDING_REDUCED_COST = 1e-6
 #: Settings that do not change the sequence of LPs, left out of a checkpoint's signature.
 CHECKPOINT_FREE_SETTINGS = ("verbose", "max_iters")
 #: No pairs: the LP's forced rows at the start.
@@ -144,63 +145,19 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     settings = JamSettings.from_options(solver=solver, tol_gamma=tol_gamma, tol_s=tol_s,
                                         max_iters=max_iters, verbose=verbose, **options)
     start = time.perf_counter()
-    packing = _as_packing(packing, diameters, box)
+    packing = as_packing(packing, diameters, box)
     check_enough_particles(packing.n, packing.d)
     hint = None if network is None else check_network_hint(network, packing.n)
     return _Jammer(packing, settings, callback, checkpoint, start=start, hint=hint,
                    on_lp=on_lp).run()
 
 
-def _as_packing(packing, diameters, box) -> Packing:
-    if isinstance(packing, Packing):
-        if diameters is not None or box is not None:
-            raise TypeError("pass either a Packing, or positions with diameters and box")
-        return packing
-    if diameters is None or box is None:
-        raise TypeError("jam(positions, diameters, box): diameters and box are required")
-    return Packing(packing, diameters, box)
-
-
-def check_enough_particles(n: int, d: int) -> None:
-    """Raise ValueError when N particles cannot jam in d dimensions.
-
-    Under the minimum-image convention a stable particle touches d + 1 distinct others, and an
-    isostatic network of N_s particles has N_c = d (N_s − 1) + 1 ≤ N_s (N_s − 1) / 2 contacts:
-    so N_s ≥ 2 d + 1, whatever the box.
-    """
-    least = 2 * d + 1
-    if n < least:
-        raise ValueError(f"cannot jam {n} particle(s) in d = {d}: a jammed packing in a "
-                         f"periodic box needs at least 2 d + 1 = {least} particles (each stable "
-                         f"particle touches d + 1 others, and an isostatic network of N_s "
-                         f"particles has d (N_s - 1) + 1 contacts)")
-
-
-def check_input_overlaps(search: NeighborSearch, tolerance: float) -> None:
-    """Raise ValueError naming duplicated or overlapping particles of an input (in mean
-    diameters, the loop's units).
-
-    Overlaps down to a relative gap h = |r|/σ − 1 > −`tolerance` are round-off and accepted.
-    """
-    check_no_duplicates(search.positions, search.box, SAME_PLACE)
-    close = search.pairs_within(float(search.diameters.max()))
-    gaps = close.gaps
-    if gaps.size and gaps.min() < -tolerance:
-        k = int(np.argmin(gaps))
-        count = int(np.count_nonzero(gaps < -tolerance))
-        raise ValueError(
-            f"overlapping particles in the input: {count} pair(s) overlap beyond round-off "
-            f"(h < -{tolerance:g}), the worst is ({close.i[k]}, {close.j[k]}) with gap "
-            f"h = |r|/sigma - 1 = {gaps[k]:.3e}; shrink every diameter by the factor 1 + h "
-            f"of the worst pair, or make the start with a generator")
-
-
 def initial_step_bound(gap: float, settings: JamSettings) -> float:
     """First bound on displacements: the median nearest-neighbour surface gap, at least
     `INITIAL_STEP_FLOOR`, clipped to [min_step, max_step].
 
-    From a compressed state (LS at p ≥ 1e5, gaps ~1e-6) the particles still travel ~1e-3–1e-2
-    to the jamming point; starting at the gap would spend several LPs growing the bound.
+    From a compressed state the particles still travel much farther than their gaps to the
+    jamming point; starting at the gap would spend several LPs growing the bound.
 
     Parameters
     ----------
@@ -216,19 +173,13 @@ def initial_step_bound(gap: float, settings: JamSettings) -> float:
 
 def median_gap(search: NeighborSearch) -> float:
     """Median over particles of the surface gap |r_ij| − σ_ij to the nearest neighbour
-    (mean diameters): ~1e-6 for an LS state at reduced pressure 1e5, ~1e-2 for a
-    force-biased start at φ ≈ 0.6."""
+    (mean diameters): small for a compressed state, large for a loose start."""
     distances, neighbours = search.nearest_neighbours()
     sigma = 0.5 * (search.diameters + search.diameters[neighbours])
     return float(np.median(distances - sigma))
 
 
-def _at_bound(displacement, bound: float):
-    """Whether a displacement (float or array) equals the bound, up to the solver's round-off."""
-    return displacement >= bound * (1.0 - 1e-6)
-
-
-def next_step_bound(step: float, taken: "_Step", settings: JamSettings) -> float:
+def next_step_bound(step: float, taken: Step, settings: JamSettings) -> float:
     """Adapt the displacement bound to the step just taken.
 
     - A stable particle held at the bound means the bound limited the step: multiply it by
@@ -238,14 +189,14 @@ def next_step_bound(step: float, taken: "_Step", settings: JamSettings) -> float
       bound, grow the bound too, otherwise keep it.
     - Otherwise the next bound is `step_margin` × the largest displacement of a stable
       particle, so that it follows the shrinking steps of the final approach (and the LP
-      keeps fewer rows), but it does not shrink while it limits Γ (`_Step.held_by_bound`):
+      keeps fewer rows), but it does not shrink while it limits Γ (`Step.held_by_bound`):
       particles with d or fewer contacts count as rattlers, yet their neighbours can press
       them against the bound. Shrinking the bound with the stable particles' steps then
       stalled the loop at the smallest bound.
     """
     sparse_network = taken.stable_fraction < 0.5
-    if (_at_bound(taken.max_displacement, step)
-            or (sparse_network and _at_bound(taken.max_contacting, step))):
+    if (at_bound(taken.max_displacement, step)
+            or (sparse_network and at_bound(taken.max_contacting, step))):
         proposed = step * settings.step_growth
     elif sparse_network:
         proposed = step
@@ -254,79 +205,6 @@ def next_step_bound(step: float, taken: "_Step", settings: JamSettings) -> float
     else:
         proposed = settings.step_margin * taken.max_displacement
     return float(np.clip(proposed, settings.min_step, settings.max_step))
-
-
-@dataclass(eq=False)
-class _Step:
-    """One solved LP and what its duals say."""
-
-    lp: LinearProgram
-    solution: LPSolution
-    contact_rows: np.ndarray       # rows that are contacts between stable particles
-    rattlers: np.ndarray           # (N,) bool
-    forces: np.ndarray             # (len(contact_rows),) f = μ/2, not normalised
-    balance: float                 # at the LP's own geometry
-    max_displacement: float        # over non-rattlers, mean diameters
-    max_contacting: float          # over particles with at least one contact (before removal)
-    stable_fraction: float         # fraction of particles that are not rattlers
-    held_by_bound: bool            # relaxing the bound would increase Γ
-    offered_warm_start: bool = False   # the LP was given the previous LP's basis
-
-    @property
-    def displacements(self) -> np.ndarray:
-        return self.solution.x[:-1].reshape(self.lp.n, self.lp.d)
-
-    @property
-    def n_contacts(self) -> int:
-        return int(self.contact_rows.shape[0])
-
-    @property
-    def hypostatic(self) -> bool:
-        """Fewer contacts than d (N_s − 1) + 1, or no stable particle at all."""
-        n_stable = int(self.rattlers.size - self.rattlers.sum())
-        return n_stable == 0 or isostaticity_gap(self.n_contacts, n_stable, self.lp.d) < 0
-
-    @property
-    def needs_cold_resolve(self) -> bool:
-        """A warm-started vertex with a hypostatic network, not held back by the bound.
-
-        Such a vertex is solved again from scratch (`SolverPolicy.cold_resolve`): at a
-        degenerate optimum the simplex can stop at a vertex whose duals leave contacts out.
-        When the bound holds a particle back (`held_by_bound`), the bound stands in for the
-        missing contact instead, and the cold solve ends with the same deficit.
-        """
-        return self.solution.warm_started and self.hypostatic and not self.held_by_bound
-
-    @property
-    def normalization(self) -> float:
-        return float(self.solution.duals @ self.lp.gamma_coefficients)
-
-    def network(self) -> ContactNetwork:
-        """The LP's contact network, with the forces of its duals."""
-        pairs, rows = self.lp.pairs, self.contact_rows
-        return ContactNetwork(pairs.i[rows], pairs.j[rows], self.forces, self.rattlers,
-                              self.normalization, self.solution.solver, from_lp=True)
-
-
-def _held_by_bound(lp: LinearProgram, solution: LPSolution) -> bool:
-    """Whether the bound on the displacements limited Γ in this LP.
-
-    At the optimum, a displacement s_k strictly inside its bound has a zero reduced cost
-    (Aᵀμ)_k: the forces on that particle balance along k. A non-zero one at the bound is the
-    bound's own multiplier, the rate at which Γ would grow if the bound were relaxed.
-    """
-    if solution.duals.size == 0:
-        return False
-    largest = float(solution.duals.max())
-    if largest <= 0:
-        return False
-    s = solution.x[:-1]
-    free = lp.col_upper[:-1] > 0
-    at_bound = free & _at_bound(np.abs(s), lp.step_bound)
-    if not at_bound.any():
-        return False
-    reduced = (lp.matrix.T @ solution.duals)[:-1]
-    return bool(np.any(np.abs(reduced[at_bound]) > BINDING_REDUCED_COST * largest))
 
 
 class _Jammer:
@@ -426,10 +304,10 @@ class _Jammer:
         return pairs
 
     def _solve(self, search: NeighborSearch, step: float, fixed: np.ndarray,
-               stable: np.ndarray | None = None, forced: np.ndarray = NO_PAIRS) -> _Step:
+               stable: np.ndarray | None = None, forced: np.ndarray = NO_PAIRS) -> Step:
         """Build and solve one LP by the solver policy (retries, fallbacks, warm start), and
-        read its duals; a warm-started vertex with a hypostatic network is solved again from
-        scratch (`_Step.needs_cold_resolve`)."""
+        read its duals (`calippso.step.analyse`); a warm-started vertex with a hypostatic
+        network is solved again from scratch (`Step.needs_cold_resolve`)."""
         lp_number = self.history.lps_solved + 1
         try:
             solved = self.policy.solve(
@@ -440,43 +318,15 @@ class _Jammer:
             raise self._fail(str(error)) from None
         if solved.note is not None:
             self.history.note(solved.note)
-        taken = self._analyse(solved.lp, solved.solution, stable)
+        offered = solved.warm_start is not None
+        taken = analyse(solved.lp, solved.solution, self.settings, stable, offered)
         if taken.needs_cold_resolve:
             cold = self.policy.cold_resolve(solved, lp_number)
             if cold is not None:
-                taken = self._analyse(solved.lp, cold, stable)
-        taken.offered_warm_start = solved.warm_start is not None
+                taken = analyse(solved.lp, cold, self.settings, stable, offered)
         return taken
 
-    def _analyse(self, lp: LinearProgram, solution: LPSolution,
-                 stable: np.ndarray | None) -> _Step:
-        """What an LP's solution says: contacts (duals above the contact threshold),
-        rattlers, forces and their balance, the largest displacements."""
-        threshold = (self.settings.contact_threshold if solution.vertex
-                     else self.settings.interior_contact_threshold)
-        rows = np.flatnonzero(contact_mask(solution.duals, threshold))
-        pairs = lp.pairs
-        contacting = np.zeros(self.n, dtype=bool)
-        contacting[pairs.i[rows]] = contacting[pairs.j[rows]] = True
-        rattlers, kept = remove_rattlers(self.n, self.d, pairs.i[rows], pairs.j[rows])
-        if stable is not None:
-            rattlers |= ~stable
-        rows = rows[kept]
-        forces = 0.5 * solution.duals[rows]
-        normals = pairs.vectors[rows] / pairs.distances[rows, None]
-        balance = force_balance(self.n, pairs.i[rows], pairs.j[rows], normals, forces, ~rattlers)
-        s = solution.x[:-1].reshape(self.n, self.d)
-        free = lp.col_upper[:-1].reshape(self.n, self.d)[:, 0] > 0
-        max_contacting = float(np.abs(s[contacting & free]).max(initial=0.0))
-        # with no stable particle at all, the steps of particles with a contact count: a run
-        # is not converged just because rattler removal emptied its network
-        max_displacement = (float(np.abs(s[~rattlers & free]).max(initial=0.0))
-                            if (~rattlers).any() else max_contacting)
-        return _Step(lp, solution, rows, rattlers, forces, balance, max_displacement,
-                     max_contacting, float(np.count_nonzero(~rattlers)) / self.n,
-                     _held_by_bound(lp, solution))
-
-    def _record(self, step: _Step, min_gap: float, stage: str = "lp") -> Record:
+    def _record(self, step: Step, min_gap: float, stage: str = "lp") -> Record:
         """The history record of an LP (the solver time of refused answers included)."""
         return self.history.add_lp(
             stage=stage, solver_time=step.solution.seconds + self.policy.take_discarded_seconds(),
@@ -564,7 +414,7 @@ class _Jammer:
             raise self._fail(f"no LP was solved (max_iters = {settings.max_iters})")
         return self._finish(network, reason)
 
-    def _check_box_size(self, taken: _Step) -> None:
+    def _check_box_size(self, taken: Step) -> None:
         """Stop with an error when the particles grow to half the box side without jamming.
 
         Pairs are taken at their minimum image, which describes the packing only while every

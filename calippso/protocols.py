@@ -234,8 +234,8 @@ def precompress(packing: Packing, pressure: float, *,
     Raises
     ------
     ValueError
-        On a pressure that is not a positive number, or particles that overlap beyond
-        round-off (the message names the worst pair).
+        On a pressure that is not a positive number, duplicated particles, or particles that
+        overlap beyond round-off (the message names the worst pair).
     """
     if not (isinstance(pressure, (int, float, np.floating)) and np.isfinite(pressure)
             and pressure > 0):
@@ -257,16 +257,11 @@ def precompress_note(start: Packing, run: "GenerationResult") -> str:
 
 
 def _check_no_overlap(packing: Packing) -> None:
-    """ValueError naming the worst pair if two particles overlap beyond `OVERLAP_TOLERANCE`."""
-    from .neighbors import close_pairs
+    """ValueError naming duplicated particles, or the worst pair if two particles overlap
+    beyond `OVERLAP_TOLERANCE` (`calippso.inputs.check_input_overlaps`, as `jam` checks)."""
+    from .inputs import check_input_overlaps
+    from .neighbors import NeighborSearch
 
-    close = close_pairs(packing.positions, packing.diameters, packing.box, 0.0)
-    gaps = close.gaps
-    if gaps.size == 0 or gaps.min() >= -OVERLAP_TOLERANCE:
-        return
-    k = int(np.argmin(gaps))
-    count = int(np.count_nonzero(gaps < -OVERLAP_TOLERANCE))
-    raise ValueError(
-        f"overlapping particles in the input: {count} pair(s) overlap beyond round-off "
-        f"(h < -{OVERLAP_TOLERANCE:g}), the worst is ({close.i[k]}, {close.j[k]}) with gap "
-        f"h = |r|/sigma - 1 = {gaps[k]:.3e}; only an overlap-free start can be compressed")
+    scale = packing.mean_diameter
+    check_input_overlaps(NeighborSearch(packing.positions / scale, packing.diameters / scale,
+                                        packing.box / scale), OVERLAP_TOLERANCE)

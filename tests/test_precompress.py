@@ -61,6 +61,9 @@ def test_overlapping_input_is_refused_before_compression():
     positions[1] = positions[0] + np.array([0.5, 0.0, 0.0])
     with pytest.raises(ValueError, match="overlapping particles"):
         precompress(Packing(positions, start.diameters, start.box), 1e5)
+    positions[1] = positions[0]
+    with pytest.raises(ValueError, match="duplicated particles in the input: particles 0 and 1"):
+        precompress(Packing(positions, start.diameters, start.box), 1e5)
 
 
 @pytest.mark.parametrize("pressure", [0.0, -1e5, float("nan")])

@@ -7,11 +7,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from calippso.ilp import _held_by_bound, _Step, next_step_bound
+from calippso.ilp import next_step_bound
 from calippso.lp import build_lp, select_pairs
 from calippso.neighbors import NeighborSearch
 from calippso.settings import JamSettings
 from calippso.solvers import get_solver
+from calippso.step import Step, held_by_bound
 
 from lattices import triangular
 
@@ -31,7 +32,7 @@ def test_pair_pressed_against_the_bound_is_held():
     lp, solution = _solved_lp([[1.0, 1.0], [2.0, 1.0]], [1.0, 1.0], [10.0, 10.0], 1e-3)
     assert solution.optimal
     assert np.abs(solution.x[2:4]).max() == pytest.approx(1e-3)
-    assert _held_by_bound(lp, solution)
+    assert held_by_bound(lp, solution)
 
 
 def test_jammed_crystal_is_not_held():
@@ -40,11 +41,11 @@ def test_jammed_crystal_is_not_held():
     lp, solution = _solved_lp(crystal.positions, crystal.diameters, crystal.box, 1e-3)
     assert solution.optimal
     assert abs(solution.gamma) < 1e-12
-    assert not _held_by_bound(lp, solution)
+    assert not held_by_bound(lp, solution)
 
 
-def _step(held: bool, max_displacement: float, stable_fraction: float = 0.95) -> _Step:
-    return _Step(lp=None, solution=None, contact_rows=np.zeros(0, dtype=np.int64),
+def _step(held: bool, max_displacement: float, stable_fraction: float = 0.95) -> Step:
+    return Step(lp=None, solution=None, contact_rows=np.zeros(0, dtype=np.int64),
                  rattlers=np.zeros(4, dtype=bool), forces=np.zeros(0), balance=0.0,
                  max_displacement=max_displacement, max_contacting=max_displacement,
                  stable_fraction=stable_fraction, held_by_bound=held)
@@ -69,7 +70,7 @@ def test_hypostatic_warm_vertex_is_resolved_cold_unless_the_bound_holds_it():
     warm = replace(solution, warm_started=True)
 
     def step(solution, held):
-        return _Step(lp=lp, solution=solution, contact_rows=np.zeros(1, dtype=np.int64),
+        return Step(lp=lp, solution=solution, contact_rows=np.zeros(1, dtype=np.int64),
                      rattlers=np.ones(2, dtype=bool), forces=np.ones(1), balance=0.0,
                      max_displacement=0.0, max_contacting=1e-3, stable_fraction=0.0,
                      held_by_bound=held)
