@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .periodic import image_component
+
 __all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "contact_pairs",
            "CONVERGED", "REBUILD", "OUT_OF_STEPS"]
 
@@ -166,8 +168,7 @@ def _pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first: n
             j = second[k]
             r2 = 0.0
             for mu in range(d):
-                dx = x[i, mu] - x[j, mu]
-                dx -= box[mu] * np.rint(dx * inv[mu])
+                dx = image_component(x[i, mu] - x[j, mu], box[mu], inv[mu])
                 r_ij[mu] = dx
                 r2 += dx * dx
             # Branch-free: about half the listed pairs overlap, in no predictable order,
@@ -200,12 +201,9 @@ def _pairs_3d(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first
         f0 = f1 = f2 = 0.0
         for k in range(first[i], first[i + 1]):
             j = second[k]
-            dx0 = x0 - x[j, 0]
-            dx1 = x1 - x[j, 1]
-            dx2 = x2 - x[j, 2]
-            dx0 -= box0 * np.rint(dx0 * inv0)
-            dx1 -= box1 * np.rint(dx1 * inv1)
-            dx2 -= box2 * np.rint(dx2 * inv2)
+            dx0 = image_component(x0 - x[j, 0], box0, inv0)
+            dx1 = image_component(x1 - x[j, 1], box1, inv1)
+            dx2 = image_component(x2 - x[j, 2], box2, inv2)
             sigma = 0.5 * scale * (s[i] + s[j])
             r = np.sqrt(max(dx0 * dx0 + dx1 * dx1 + dx2 * dx2, TINY))
             magnitude = max(sigma - r, 0.0) / (sigma * sigma)
@@ -495,8 +493,7 @@ def contact_pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
             j = second[k]
             r2 = 0.0
             for mu in range(d):
-                dx = x[i, mu] - x[j, mu]
-                dx -= box[mu] * np.rint(dx * inv[mu])
+                dx = image_component(x[i, mu] - x[j, mu], box[mu], inv[mu])
                 r2 += dx * dx
             sigma = 0.5 * scale * (s[i] + s[j])
             gap = np.sqrt(r2) / sigma - 1.0
