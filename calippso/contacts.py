@@ -1,8 +1,14 @@
-"""From LP duals to the contact network: contacts, forces, rattlers, isostaticity, balance."""
+"""From LP duals to the contact network: contacts, forces, isostaticity, balance.
+
+`remove_rattlers` lives in `calippso.rattlers` (the generators use it too); it is imported
+here as well, for the modules that take it from this one.
+"""
 
 from __future__ import annotations
 
 import numpy as np
+
+from .rattlers import remove_rattlers
 
 __all__ = ["contact_mask", "remove_rattlers", "net_forces", "force_balance",
            "isostaticity_gap", "equilibrium_matrix", "polish_forces", "positive_self_stress"]
@@ -20,36 +26,6 @@ def contact_mask(duals: np.ndarray, relative_threshold: float) -> np.ndarray:
     if largest <= 0:
         return np.zeros(duals.shape, dtype=bool)
     return duals > relative_threshold * largest
-
-
-def remove_rattlers(n: int, d: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Recursively remove particles with fewer than d + 1 contacts.
-
-    Removing a rattler lowers its neighbours' counts, which may make them rattlers too; the
-    removal repeats until every remaining particle has at least d + 1 contacts.
-
-    Parameters
-    ----------
-    n, d : int
-        Number of particles and dimension.
-    i, j : ndarray, shape (M,)
-        Contact pairs.
-
-    Returns
-    -------
-    rattlers : ndarray, shape (N,), bool
-    kept : ndarray, shape (M,), bool
-        Contacts between two stable particles.
-    """
-    rattlers = np.zeros(n, dtype=bool)
-    kept = np.ones(i.shape[0], dtype=bool)
-    while True:
-        counts = np.bincount(i[kept], minlength=n) + np.bincount(j[kept], minlength=n)
-        new = (counts < d + 1) & ~rattlers
-        if not new.any():
-            return rattlers, kept
-        rattlers |= new
-        kept &= ~(rattlers[i] | rattlers[j])
 
 
 def net_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,

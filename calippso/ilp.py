@@ -29,7 +29,7 @@ import numpy as np
 
 from .atomic import digest
 from .checkpoint import Checkpoint
-from .contacts import isostaticity_gap, remove_rattlers
+from .contacts import isostaticity_gap
 from .errors import JammingError
 from .history import HISTORY_COLUMNS, History, Record, StopReason, status_sentence
 from .inputs import as_packing, check_enough_particles, check_input_overlaps
@@ -41,6 +41,7 @@ from .network_first import SettledNetwork, settle_candidate
 from .network_guess import Candidate, candidate_networks, check_network_hint
 from .newton import Refinement
 from .packing import Packing, wrap
+from .rattlers import remove_rattlers
 from .result import JammingResult
 from .settings import JamSettings
 from .solvers import Basis

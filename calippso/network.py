@@ -20,11 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import (force_balance, isostaticity_gap, polish_forces, positive_self_stress,
-                       remove_rattlers)
+from .contacts import force_balance, isostaticity_gap, polish_forces, positive_self_stress
 from .neighbors import NeighborSearch, Pairs, shrink_to_margin
 from .newton import Refinement, refine_isostatic
-from .rattlers import separate_rattlers
+from .rattlers import remove_rattlers, separate_rattlers
 
 __all__ = ["ContactNetwork", "Certified", "RoundoffShrink", "network_key", "network_balance",
            "overlaps_outside", "certify_network", "touching_network", "polished_forces",

@@ -1,9 +1,14 @@
-"""Moving rattlers out of overlaps, with every stable particle held fixed.
+"""Rattlers: which particles they are, and moving them out of overlaps.
+
+A rattler is a particle held by fewer than d + 1 contacts once the other rattlers are gone
+(`remove_rattlers`, a rule on the contact graph alone). The generators use it too, so this
+module stands on the geometry base: scipy's LP solver is imported only when
+`separate_rattlers` runs.
 
 Rattlers carry no force and do not take part in jamming, but they must not overlap. When the
 stable particles move to the jamming point of their contact network (`calippso.newton`), a
-rattler that touched its cage can end up overlapping it by the distance the cage moved
-(~1e-10 σ). `separate_rattlers` solves one small LP over the rattlers' displacements s,
+rattler that touched its cage can end up overlapping it by the distance the cage moved.
+`separate_rattlers` solves one small LP over the rattlers' displacements s,
 
     maximise t ≤ clearance  subject to  |r_ij| + n_ij·(s_i − s_j) ≥ σ_ij (1 + t),
 
@@ -16,17 +21,46 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import linprog
 
 from .neighbors import NeighborSearch
 from .periodic import wrap
 
-__all__ = ["separate_rattlers"]
+__all__ = ["remove_rattlers", "separate_rattlers", "RATTLER_REACH", "RATTLER_CLEARANCE"]
 
 #: Largest displacement component of a rattler (mean diameters).
 RATTLER_REACH = 1e-4
 #: Relative gap the LP aims for between a rattler and its neighbours, when the cage allows.
 RATTLER_CLEARANCE = 1e-9
+
+
+def remove_rattlers(n: int, d: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Recursively remove particles with fewer than d + 1 contacts.
+
+    Removing a rattler lowers its neighbours' counts, which may make them rattlers too; the
+    removal repeats until every remaining particle has at least d + 1 contacts.
+
+    Parameters
+    ----------
+    n, d : int
+        Number of particles and dimension.
+    i, j : ndarray, shape (M,)
+        Contact pairs.
+
+    Returns
+    -------
+    rattlers : ndarray, shape (N,), bool
+    kept : ndarray, shape (M,), bool
+        Contacts between two stable particles.
+    """
+    rattlers = np.zeros(n, dtype=bool)
+    kept = np.ones(i.shape[0], dtype=bool)
+    while True:
+        counts = np.bincount(i[kept], minlength=n) + np.bincount(j[kept], minlength=n)
+        new = (counts < d + 1) & ~rattlers
+        if not new.any():
+            return rattlers, kept
+        rattlers |= new
+        kept &= ~(rattlers[i] | rattlers[j])
 
 
 def separate_rattlers(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -53,6 +87,8 @@ def separate_rattlers(positions: np.ndarray, diameters: np.ndarray, box: np.ndar
         The new positions (wrapped into the box), or None when no placement within `reach`
         is free of overlaps (the rattlers' cages are closed).
     """
+    from scipy.optimize import linprog   # the LP solver, only when rattlers must move
+
     n, d = positions.shape
     movable = np.flatnonzero(rattlers)
     if movable.size == 0:

@@ -12,9 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import contact_mask, force_balance, isostaticity_gap, remove_rattlers
+from .contacts import contact_mask, force_balance, isostaticity_gap
 from .lp import LinearProgram
 from .network import ContactNetwork
+from .rattlers import remove_rattlers
 from .settings import JamSettings
 from .solvers import LPSolution
 

@@ -8,8 +8,9 @@ One calling convention for the sphere generators::
 A generator that can continue from a configuration (LS, MLS) takes it as ``start=packing``
 instead of diameters and d. `poisson(diameters, d, *, phi, seed)` places random centres and
 returns the `calippso.Packing` itself. The generators build only on calippso's geometry base
-(`calippso.packing`, `calippso.periodic`, `calippso.neighbors`, `calippso.atomic`); importing
-this package never imports an LP solver.
+(`calippso.packing`, `calippso.periodic`, `calippso.neighbors`, `calippso.atomic`,
+`calippso.checkpoint`, and `calippso.rattlers` for the rattler rule); importing this package
+never imports an LP solver.
 """
 
 from . import diameters

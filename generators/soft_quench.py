@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 
-from calippso.contacts import remove_rattlers
 from calippso.packing import Packing, ball_volume
+from calippso.rattlers import remove_rattlers
 
 from . import _fire
 from ._checks import (check_diameters, check_dimension, check_phi, check_positive,

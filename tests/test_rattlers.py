@@ -1,11 +1,12 @@
-"""`calippso.rattlers.separate_rattlers`: rattlers moved out of overlaps, nothing else moved."""
+"""`calippso.rattlers`: which particles are rattlers (`remove_rattlers`), and rattlers moved
+out of overlaps with nothing else moved (`separate_rattlers`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from calippso.neighbors import NeighborSearch
-from calippso.rattlers import RATTLER_CLEARANCE, separate_rattlers
+from calippso.rattlers import RATTLER_CLEARANCE, remove_rattlers, separate_rattlers
 
 from lattices import triangular
 
@@ -50,3 +51,13 @@ def test_no_rattler_leaves_positions_unchanged():
     positions, diameters, box, _ = _caged_rattler(1.0, shift=0.0)
     none = np.zeros(len(diameters), dtype=bool)
     assert separate_rattlers(positions, diameters, box, none) is positions
+
+
+def test_rattlers_are_removed_recursively():
+    # d = 2: a complete graph on 0-3 and particle 4 on three of them are stable; 5, 7 and 8
+    # have two contacts each, and once they go, 6 (three contacts at first) is left with none
+    pairs = np.array([(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3), (0, 4), (1, 4), (2, 4),
+                      (3, 5), (4, 5), (5, 6), (6, 7), (6, 8), (7, 8)])
+    rattlers, kept = remove_rattlers(9, 2, pairs[:, 0], pairs[:, 1])
+    np.testing.assert_array_equal(np.flatnonzero(rattlers), [5, 6, 7, 8])
+    np.testing.assert_array_equal(kept, np.arange(len(pairs)) < 9)
