@@ -60,11 +60,27 @@ def phi_estimate(d: int) -> float:
     return (2.56 * d - 2.72) / 2.0**d
 
 
+#: Relative gap `remove_roundoff_overlap` leaves on the closest pair (a few units of round-off).
+ROUNDOFF_MARGIN = 1e-15
+
+
 def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray,
                             box: np.ndarray) -> tuple[np.ndarray, float]:
     """Scale all diameters down by the (tiny) relative overlap left by round-off, if any.
 
-    The check is an independent periodic KD-tree search (`calippso.neighbors.min_gap`).
+    The check is an independent periodic KD-tree search (`calippso.neighbors.min_gap`). The
+    factor is 1 − (−h + `ROUNDOFF_MARGIN`), not `calippso.neighbors.shrink_to_margin`'s
+    (1 + h)(1 − margin), because the two differ in the last bit for some gaps h and the
+    generators' outputs must stay the same bit for bit.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres (length units).
+    diameters : ndarray, shape (N,)
+        Diameters (length units).
+    box : ndarray, shape (d,)
+        Periodic box sides (length units).
 
     Returns
     -------
@@ -78,5 +94,5 @@ def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray,
     gap, _ = min_gap(positions, diameters, box)
     if gap >= 0:
         return diameters, 0.0
-    correction = -gap + 1e-15
+    correction = -gap + ROUNDOFF_MARGIN
     return diameters * (1.0 - correction), correction
