@@ -3,7 +3,7 @@
 Real p = 1e12 packings from ../shared/data (case 1), larger random starts far from jamming
 in d = 3, 4, 5 (case 2), a small d = 5 box whose default cutoff would
 exceed half the box (case 5), LS p = 1e12 inputs in d = 4, 5, and the N = 10000 input with
-round-off overlaps (case 7). Run times are listed in docs/stability.md. Every backend on
+round-off overlaps (case 7), as docs/stability.md lists them. Every backend on
 the slow inputs (case 9): tests/test_backends.py.
 """
 
