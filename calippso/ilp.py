@@ -62,6 +62,12 @@ INITIAL_STEP_FLOOR = 1e-3
 #: that does not converge says that precompressing it (`calippso.protocols.precompress`) is
 #: the remedy.
 LOOSE_INPUT_GAP = 1e-3
+#: A safe step bound below this fraction of `JamSettings.min_step` means that even a vanishing
+#: step would need pairs beyond half the box side: the box is too small.
+VANISHING_STEP_FRACTION = 1e-3
+#: A step counts as converged only when its largest displacement stays below this fraction
+#: of its bound (the bound did not hold it back).
+INSIDE_BOUND_FRACTION = 0.5
 #: Candidate networks the network-first stage settles at most (each costs a few sparse
 #: factorisations).
 MAX_NETWORK_GUESSES = 3
@@ -352,7 +358,7 @@ class _Jammer:
         verifying = False
         while self.history.lps_solved < settings.max_iters:
             bound = largest_safe_step(self.search, self.step)
-            if bound < settings.min_step * 1e-3:
+            if bound < settings.min_step * VANISHING_STEP_FRACTION:
                 raise self._fail("box too small: even a vanishing step would need pairs "
                                  "beyond half the box side")
             taken = self._solve(self.search, bound, self.fixed, forced=self.forced)
@@ -377,7 +383,7 @@ class _Jammer:
             network = taken.network()
             converged = (record.sqrt_gamma_minus_1 < settings.tol_gamma
                          and taken.max_displacement < settings.tol_s
-                         and taken.max_displacement < 0.5 * bound
+                         and taken.max_displacement < INSIDE_BOUND_FRACTION * bound
                          and not taken.held_by_bound)
             if verifying:
                 verifying = False
