@@ -123,9 +123,13 @@ class Checkpoint:
         return {key: (str(value) if value.dtype.kind == "U" and value.ndim == 0 else value)
                 for key, value in state.items() if not key.startswith("_")}
 
+    def due(self) -> bool:
+        """Whether a path was given and at least `every` seconds passed since the last save."""
+        return self.path is not None and time.monotonic() - self._last >= self.every
+
     def maybe_save(self, state: dict) -> bool:
         """Save `state` if at least `every` seconds passed since the last save; return whether."""
-        if self.path is None or time.monotonic() - self._last < self.every:
+        if not self.due():
             return False
         self.save(state)
         return True

@@ -303,9 +303,10 @@ def generate_ls(
     show_default=True,
     help="Stop once the soft-sphere pressure is at or below this (energy / mean diameter^d).",
 )
+@checkpoint_option
 @output_path()
 @output_options
-def generate_quench(n, d, distribution, ratio, std, seed, pressure, output, out):
+def generate_quench(n, d, distribution, ratio, std, seed, pressure, checkpoint, output, out):
     """Soft-sphere quench to a vanishing pressure, then shrunk to hard contact.
 
     The start of a large packing: `calippso jam OUTPUT --network OUTPUT` certifies its
@@ -317,7 +318,7 @@ def generate_quench(n, d, distribution, ratio, std, seed, pressure, output, out)
 
     sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
     generation = generators.soft_quench(sizes, d, seed=seed, target_pressure=pressure,
-                                        progress=out.progress)
+                                        progress=out.progress, checkpoint=checkpoint)
     packing = generation.packing
     if output.suffix.lower() == ".npz" and generation.contacts is not None:
         save_npz_atomic(output, {"positions": packing.positions, "diameters": packing.diameters,

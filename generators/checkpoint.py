@@ -1,9 +1,10 @@
-"""Checkpoints of long generator runs (LS, MLS, force-biased spherocylinders).
+"""Checkpoints of long generator runs (LS, MLS, force-biased spherocylinders, soft quench).
 
 The design is `calippso.checkpoint.Checkpoint`, shared with `calippso.jam`: the whole state
-at the end of a window, saved atomically at most every `every` seconds and once more at the
-end, and refused when it belongs to a call with other inputs. Every window of
-`generators.edmd.run_window` starts from that state alone, so a resumed run continues
+at the end of a window (at a pause of a minimisation, for the quench), saved atomically at
+most every `every` seconds and once more at the end, and refused when it belongs to a call
+with other inputs. Every window of `generators.edmd.run_window`, and every stretch of FIRE
+steps of `generators.soft_quench`, starts from that state alone, so a resumed run continues
 bit for bit as the uninterrupted run would have.
 """
 

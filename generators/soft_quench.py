@@ -8,7 +8,10 @@ the overlaps; `calippso.jam` can then prove the jamming point from that network.
 
 from __future__ import annotations
 
+import os
 import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -18,6 +21,7 @@ from calippso.rattlers import remove_rattlers
 from . import _fire
 from ._checks import (check_diameters, check_dimension, check_phi, check_positive,
                       phi_estimate, remove_roundoff_overlap)
+from .checkpoint import Checkpoint, digest
 from ._progress import Progress
 from .cells import verlet_lists
 from .periodic import wrap_into_box
@@ -61,6 +65,9 @@ PHI_START_FACTOR = 1.12
 #: ~1e-3 σ per minimisation, and a thin skin lists fewer pairs.
 SKIN_DRIFT_FACTOR = 4.0
 SKIN_MIN = 0.02
+#: FIRE steps between two pauses of a minimisation, where a checkpoint may be written (a
+#: pause changes no result: `_fire.fire_run` starts from the positions and velocities alone).
+PAUSE_STEPS = 1000
 
 
 class _SoftSpheres:
@@ -110,6 +117,43 @@ class _SoftSpheres:
         self.x_built = self.x.copy()
         self.scale_built = self.scale
         self.lists: tuple[np.ndarray, ...] = ()
+        # The minimisation in progress: FIRE's state (`_fire.fire_run`; empty between two
+        # minimisations), its steps so far, the rebuild count at its start and the last drift.
+        self.fire = np.empty(0)
+        self.taken = 0
+        self.built = 0
+        self.drift = 0.0
+
+    #: Attributes that, with the nominal sizes in the sorted order (`s`), make up the whole
+    #: state at a pause (`minimise`) or between two minimisations.
+    STATE = ("x", "v", "s", "ids", "scale", "steps", "rebuilds", "skin", "x_built",
+             "scale_built", "fire", "taken", "built", "drift")
+
+    def state(self) -> dict:
+        """The state at a pause, for a checkpoint (copies of the arrays)."""
+        return {f"state_{name}": np.copy(getattr(self, name)) for name in self.STATE}
+
+    def restore(self, saved: dict) -> None:
+        """Continue from a `state()` dict (as read back from a checkpoint), bit for bit.
+
+        Raises
+        ------
+        ValueError
+            If the saved positions do not match this run's N and d.
+        """
+        if saved["state_x"].shape != self.x.shape:
+            raise ValueError(f"checkpoint holds {saved['state_x'].shape} positions, this run "
+                             f"has {self.x.shape}")
+        for name in ("x", "v", "s", "x_built", "fire"):
+            setattr(self, name, np.array(saved[f"state_{name}"], dtype=np.float64))
+        self.ids = np.array(saved["state_ids"], dtype=np.int64)
+        for name in ("scale", "skin", "scale_built", "drift"):
+            setattr(self, name, float(saved[f"state_{name}"]))
+        for name in ("steps", "rebuilds", "taken", "built"):
+            setattr(self, name, int(saved[f"state_{name}"]))
+        self.f = np.zeros_like(self.x)
+        if self.fire.size:
+            self._build_lists()
 
     @property
     def phi(self) -> float:
@@ -122,14 +166,22 @@ class _SoftSpheres:
         order = _fire.cell_order(self.x, self.box, self.scale * self.s.max() + self.skin)
         self.x, self.v, self.s, self.ids = (self.x[order], self.v[order], self.s[order],
                                             self.ids[order])
-        self.lists = _fire.pair_lists(*verlet_lists(self.x, self.box, self.scale * self.s,
-                                                    self.skin))
         self.x_built = self.x.copy()
         self.scale_built = self.scale
+        self._build_lists()
         self.rebuilds += 1
 
-    def minimise(self, pressure: float, tolerance: float, max_steps: int) -> tuple[int, float]:
+    def _build_lists(self) -> None:
+        """Verlet lists of the positions and scale at the last build."""
+        self.lists = _fire.pair_lists(*verlet_lists(self.x_built, self.box,
+                                                    self.scale_built * self.s, self.skin))
+
+    def minimise(self, pressure: float, tolerance: float, max_steps: int,
+                 pause: Callable[[bool], None] | None = None) -> tuple[int, float]:
         """FIRE from rest at fixed pressure (enthalpy) until converged or out of steps.
+
+        A minimisation restored from a checkpoint in progress (`restore`) continues where it
+        paused.
 
         Parameters
         ----------
@@ -140,7 +192,11 @@ class _SoftSpheres:
             (or the round-off floor of the forces, `ROUNDOFF_FORCE` × eps × L) and
             |p − p*| ≤ tolerance × p*.
         max_steps : int
-            Steps allowed.
+            Steps allowed to this minimisation.
+        pause : callable, optional
+            Called as ``pause(stopped)`` after every list rebuild and every `PAUSE_STEPS`
+            steps, where the state is complete (`state`); `stopped` is True when the steps
+            ran out, and the minimisation then returns as it stands.
 
         Returns
         -------
@@ -149,27 +205,37 @@ class _SoftSpheres:
         pressure : float
             Pressure at the end.
         """
-        self.v[:] = 0.0
-        state = np.array([self.dt0, _fire.ALPHA_START, 0.0, 0.0, np.log(self.scale), 0.0])
-        self.rebuild()
-        built = self.rebuilds
-        taken = 0
+        if not self.fire.size:
+            self.v[:] = 0.0
+            self.fire = np.array([self.dt0, _fire.ALPHA_START, 0.0, 0.0, np.log(self.scale),
+                                  0.0])
+            self.rebuild()
+            self.built, self.taken, self.drift = self.rebuilds, 0, 0.0
         while True:
             code, steps, reached, drift = _fire.fire_run(
                 self.x, self.v, self.f, self.s, self.box, *self.lists, self.x_built,
-                self.skin, self.scale_built, state, DT_MAX_FACTOR * self.dt0,
+                self.skin, self.scale_built, self.fire, DT_MAX_FACTOR * self.dt0,
                 _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure,
-                max_steps - taken)
-            taken += steps
-            self.scale = float(np.exp(state[4]))
-            if code != _fire.REBUILD:
+                min(max_steps - self.taken, PAUSE_STEPS))
+            self.taken += steps
+            if steps:
+                self.drift = drift
+            self.scale = float(np.exp(self.fire[4]))
+            if code == _fire.CONVERGED:
                 break
-            self.rebuild()
-        self.steps += taken
-        if self.rebuilds == built:
-            self.skin = min(self.max_skin, max(SKIN_MIN, SKIN_DRIFT_FACTOR * drift))
+            stopped = code == _fire.OUT_OF_STEPS and self.taken >= max_steps
+            if code == _fire.REBUILD:
+                self.rebuild()
+            if pause is not None:
+                pause(stopped)
+            if stopped:
+                break
+        self.steps += self.taken
+        if self.rebuilds == self.built:
+            self.skin = min(self.max_skin, max(SKIN_MIN, SKIN_DRIFT_FACTOR * self.drift))
         else:
             self.skin = min(self.max_skin, 2.0 * self.skin)
+        self.fire = np.empty(0)
         return code, reached
 
     def pairs_below(self, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -229,8 +295,9 @@ def _check_box(box: np.ndarray, nominal: np.ndarray, skin: float, phi_start: flo
 
 def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = None,
                 target_pressure: float = 1e-7, force_tolerance: float = 1e-6,
-                progress: bool = False, skin: float = 0.2,
-                max_steps: int = 50_000_000) -> GenerationResult:
+                progress: bool = False, skin: float = 0.2, max_steps: int = 50_000_000,
+                checkpoint: str | os.PathLike | None = None,
+                checkpoint_every: float = 60.0) -> GenerationResult:
     """Quench harmonic soft spheres to a vanishing pressure, then shrink them to hard contact.
 
     The route of O'Hern, Silbert, Liu & Nagel (2003) into a hard-sphere jamming basin, with
@@ -274,7 +341,16 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         Largest Verlet skin in mean diameters; once the particles settle, the skin follows
         their drift per minimisation (down to 0.02).
     max_steps : int
-        Limit on the FIRE steps of the whole run.
+        Limit on the FIRE steps of the whole run. A run stopped by it and called again with
+        a larger limit and the same checkpoint continues where it stopped.
+    checkpoint : str or PathLike, optional
+        File (``.npz``) holding the state of the run (`generators.checkpoint`). It is written
+        atomically at most every `checkpoint_every` seconds (at a list rebuild or every 1000
+        FIRE steps), when the steps run out, and at the end. A call with the same inputs
+        resumes from it and returns the result of the uninterrupted run, bit for bit; a
+        finished run returns from it at once. `max_steps` may differ between the calls.
+    checkpoint_every : float
+        Smallest wall time in seconds between two checkpoint writes (0: at every pause).
 
     Returns
     -------
@@ -295,13 +371,16 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         i < j, sorted, and their relative gaps: the candidates to join the hard-sphere
         network, which is the limit p → 0 and can differ from `contacts` by a few pairs),
         ``isostaticity_gap`` (N_c − (d (N_s − 1) + 1) of `contacts`), ``stable``
-        (N_s), ``overlap_correction`` (round-off shrink after an independent check, ~0).
+        (N_s), ``overlap_correction`` (round-off shrink after an independent check, ~0),
+        ``resumed`` (whether the run continued from a checkpoint; `wall_time` then adds up
+        every call's time).
 
     Raises
     ------
     ValueError
         On non-positive diameters, d < 2, phi_start outside (0, 1), non-positive pressure,
-        tolerance or skin, a non-positive max_steps, or too few particles for the box.
+        tolerance or skin, a non-positive max_steps, too few particles for the box, or a
+        checkpoint file that belongs to another run (one line naming the file).
     """
     wall = time.perf_counter()
     diameters = check_diameters(diameters)
@@ -314,77 +393,146 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     skin = check_positive(skin, "skin")
     if int(max_steps) != max_steps or max_steps < 1:
         raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
+    saver = Checkpoint(checkpoint, "soft_quench",
+                       {"diameters": digest(diameters), "d": d, "seed": int(seed),
+                        "phi_start": phi_start, "target_pressure": target_pressure,
+                        "force_tolerance": force_tolerance, "skin": skin},
+                       every=check_positive(checkpoint_every, "checkpoint_every",
+                                            allow_zero=True))
     mean = float(diameters.mean())
     start = poisson(diameters, d, phi=phi_start, seed=seed)
     box = start.box / mean
     nominal = diameters / mean
     _check_box(box, nominal, skin, phi_start, PHI_START_FACTOR * typical)
     system = _SoftSpheres(start.positions / mean, nominal, box, skin)
-    rows: list[tuple] = []
-    ladder = _pressure_ladder(TARGET_AIM * target_pressure)
-    bar = Progress(progress, -np.log10(ladder[-1]), "soft quench -log10(p)")
+    run = _Run(_pressure_ladder(TARGET_AIM * target_pressure), force_tolerance, max_steps)
+    earlier_wall = 0.0
+    saved = saver.load()
+    if saved is not None:
+        system.restore(saved)
+        run.restore(saved)
+        earlier_wall = float(saved["wall_time"])
+
+    def pause(stopped: bool) -> None:
+        if stopped or saver.due():
+            saver.save({**system.state(), **run.state(),
+                        "wall_time": earlier_wall + time.perf_counter() - wall})
+
+    bar = Progress(progress, -np.log10(run.ladder[-1]), "soft quench -log10(p)")
     try:
-        for aim in ladder:
-            code, pressure = system.minimise(aim, INTERMEDIATE_TOLERANCE,
-                                             max_steps - system.steps)
-            if code == _fire.CONVERGED and aim == ladder[-1]:
-                code, pressure = _tighten(system, aim, force_tolerance, max_steps)
-            rows.append((system.steps, system.phi, pressure, np.nan))
-            bar.update(-np.log10(pressure), phi=f"{system.phi:.6f}", p=f"{pressure:.3g}")
-            if code == _fire.OUT_OF_STEPS:
-                status = f"stopped at max_steps = {max_steps} (pressure {pressure:.3g})"
-                break
-        else:
-            status = f"converged at pressure {pressure:.3g} <= target {target_pressure:.3g}"
+        code, pressure = run.quench(system, pause, bar)
     finally:
         bar.close()
-    return _shrunk_result(system, diameters, mean, rows, pressure, status, wall)
+    if code == _fire.OUT_OF_STEPS:
+        status = f"stopped at max_steps = {max_steps} (pressure {pressure:.3g})"
+    else:
+        status = f"converged at pressure {pressure:.3g} <= target {target_pressure:.3g}"
+        pause(True)
+    return _shrunk_result(system, diameters, mean, run.rows, pressure, status,
+                          wall - earlier_wall, saved is not None)
 
 
-def _tighten(system: _SoftSpheres, target: float, force_tolerance: float,
-             max_steps: int) -> tuple[int, float]:
-    """The final minimisation: converge decade by decade until the network stops changing.
+@dataclass
+class _Run:
+    """Where a quench stands on its ladder of pressures, and its history.
 
-    From a minimum converged to `INTERMEDIATE_TOLERANCE`, the tolerance drops tenfold each
-    round, down to `force_tolerance`; it stops early once two rounds in a row leave the same
-    overlap network without rattlers, and that network is not hypostatic (in practice below
-    1e-5 of the mean force, docs/notes/soft-quench-protocol.md).
-
-    Parameters
+    Attributes
     ----------
-    system : _SoftSpheres
-        At a minimum converged to `INTERMEDIATE_TOLERANCE` at pressure `target`.
-    target : float
-        Pressure of the minimisation.
+    ladder : ndarray
+        Pressures of the minimisations (`_pressure_ladder`).
     force_tolerance : float
-        Last tolerance.
+        Tightest convergence of the last minimisation (see `soft_quench`).
     max_steps : int
         Limit on the FIRE steps of the whole run.
-
-    Returns
-    -------
-    code : int
-        `_fire.CONVERGED`, or `_fire.OUT_OF_STEPS` from a round.
+    rung : int
+        Index in `ladder` of the minimisation in progress (len(ladder) once all are done).
+    round : int
+        0: the rung's minimisation to `INTERMEDIATE_TOLERANCE`; k ≥ 1: the k-th tightening
+        round of the last rung, each converged ten times tighter.
+    previous : ndarray of int64, shape (M, 2)
+        The stable overlap network after the last round (tightening only).
+    rows : list of tuple
+        One history row per finished rung: (FIRE steps so far, φ, pressure, nan).
     pressure : float
+        Pressure at the end of the last minimisation.
     """
-    code, pressure = _fire.CONVERGED, target
-    tolerance = INTERMEDIATE_TOLERANCE
-    previous, _ = system.stable_network()
-    while tolerance > force_tolerance:
-        tolerance = max(tolerance / 10.0, force_tolerance)
-        code, pressure = system.minimise(target, tolerance, max_steps - system.steps)
-        if code != _fire.CONVERGED:
-            break
+
+    ladder: np.ndarray
+    force_tolerance: float
+    max_steps: int
+    rung: int = 0
+    round: int = 0
+    previous: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.int64))
+    rows: list = field(default_factory=list)
+    pressure: float = float("nan")
+
+    def state(self) -> dict:
+        """Where the run stands, for a checkpoint."""
+        return {"run_rung": self.rung, "run_round": self.round, "run_previous": self.previous,
+                "run_pressure": self.pressure, "history": make_history(self.rows)}
+
+    def restore(self, saved: dict) -> None:
+        """Continue from a `state()` dict (as read back from a checkpoint)."""
+        self.rung, self.round = int(saved["run_rung"]), int(saved["run_round"])
+        self.previous = np.array(saved["run_previous"], dtype=np.int64).reshape(-1, 2)
+        self.pressure = float(saved["run_pressure"])
+        self.rows = [tuple(row) for row in saved["history"].tolist()]
+
+    def tolerance(self) -> float:
+        """Force tolerance of the current round: `INTERMEDIATE_TOLERANCE` divided by ten per
+        round, not below `force_tolerance`."""
+        tolerance = INTERMEDIATE_TOLERANCE
+        for _ in range(self.round):
+            tolerance = max(tolerance / 10.0, self.force_tolerance)
+        return tolerance
+
+    def quench(self, system: _SoftSpheres, pause: Callable[[bool], None],
+               bar: Progress) -> tuple[int, float]:
+        """Run the remaining minimisations: every rung of the ladder, the last one tightened.
+
+        Returns
+        -------
+        code : int
+            `_fire.CONVERGED`, or `_fire.OUT_OF_STEPS` when `max_steps` ran out.
+        pressure : float
+            Pressure at the end.
+        """
+        while self.rung < len(self.ladder):
+            code, self.pressure = system.minimise(self.ladder[self.rung], self.tolerance(),
+                                                  self.max_steps - system.steps, pause)
+            if code == _fire.CONVERGED and self.rung == len(self.ladder) - 1 \
+                    and self._tighten_again(system):
+                continue
+            self.rows.append((system.steps, system.phi, self.pressure, np.nan))
+            bar.update(-np.log10(self.pressure), phi=f"{system.phi:.6f}",
+                       p=f"{self.pressure:.3g}")
+            if code == _fire.OUT_OF_STEPS:      # (its checkpoint holds the minimisation)
+                return code, self.pressure
+            self.rung, self.round = self.rung + 1, 0
+        return _fire.CONVERGED, self.pressure
+
+    def _tighten_again(self, system: _SoftSpheres) -> bool:
+        """After a converged minimisation of the last rung: whether to converge it once more.
+
+        The tolerance drops tenfold each round, down to `force_tolerance`; the tightening
+        stops early once two rounds in a row leave the same overlap network without
+        rattlers, and that network is not hypostatic (in practice below 1e-5 of the mean
+        force, docs/notes/soft-quench-protocol.md).
+        """
         network, stable = system.stable_network()
         d = system.x.shape[1]
-        if np.array_equal(network, previous) and len(network) >= d * (stable - 1) + 1:
-            break
-        previous = network
-    return code, pressure
+        if (self.round > 0 and np.array_equal(network, self.previous)
+                and len(network) >= d * (stable - 1) + 1):
+            return False
+        if self.tolerance() <= self.force_tolerance:
+            return False
+        self.previous, self.round = network, self.round + 1
+        return True
 
 
 def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, rows: list,
-                   pressure: float, status: str, wall: float) -> GenerationResult:
+                   pressure: float, status: str, started: float,
+                   resumed: bool) -> GenerationResult:
     """Shrink the overlaps away, find the network without rattlers, build the result."""
     n, d = system.x.shape
     i, j, gaps = system.overlap_network()
@@ -403,7 +551,7 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, row
     packing = Packing(positions, sizes, box).wrapped()
     return GenerationResult(
         packing=packing, reduced_pressure=float("nan"), steps=system.steps,
-        wall_time=time.perf_counter() - wall, history=make_history(rows), status=status,
+        wall_time=time.perf_counter() - started, history=make_history(rows), status=status,
         contacts=contacts,
         extra={"pressure": float(pressure), "minimisations": len(rows), "fire_steps": system.steps,
                "rebuilds": system.rebuilds, "phi_soft": system.phi, "shrink_factor": shrink,
@@ -411,4 +559,4 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, row
                "near_contacts": np.stack([near_i[near], near_j[near]], axis=1),
                "near_gaps": near_gaps[near], "stable": stable,
                "isostaticity_gap": int(contacts.shape[0]) - (d * (stable - 1) + 1),
-               "overlap_correction": correction})
+               "overlap_correction": correction, "resumed": resumed})

@@ -420,9 +420,12 @@ def test_jam_of_one_sphere_says_why_it_cannot_jam(capfd, tmp_path):
 def test_generate_quench_keeps_its_network_for_jam(capfd, tmp_path):
     """The quench's .npz carries its overlap network, and `jam --network` tries it first."""
     start = tmp_path / "quench.npz"
-    code, out, _ = _run(capfd, "generate", "quench", "--n", "256", "--d", "3", "--seed", "1",
-                        "-o", start, "--json", "--quiet")
+    argv = ["generate", "quench", "--n", "256", "--d", "3", "--seed", "1", "--checkpoint",
+            tmp_path / "state.npz", "--json", "--quiet"]
+    code, out, _ = _run(capfd, *argv, "-o", start)
     assert code == 0 and json.loads(out)["protocol"] == "quench"
+    code, again, _ = _run(capfd, *argv, "-o", tmp_path / "again.npz")  # read back from its state
+    assert code == 0 and json.loads(again)["phi"] == json.loads(out)["phi"]
     with np.load(start) as stored:
         assert stored["contacts"].ndim == 2 and stored["contacts"].shape[1] == 2
     code, out, _ = _run(capfd, "jam", start, "--network", start, "-o", tmp_path / "jammed.npz",

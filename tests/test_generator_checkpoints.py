@@ -266,3 +266,101 @@ def test_spherocylinder_checkpoint_of_another_run_is_refused(tmp_path):
         force_biased(**ROD_ARGS, checkpoint=path)
     with pytest.raises(ValueError, match="checkpoint_every"):
         force_biased(**ROD_ARGS, checkpoint=tmp_path / "other.npz", checkpoint_every=-1)
+
+
+# --- soft-sphere quench ----------------------------------------------------------------------
+
+#: N = 128 in d = 3 tightens its last minimisation over several rounds and pauses.
+QUENCH_CASES = {"d3": (dist.monodisperse(128), 3),
+                "d2_bidisperse": (dist.bidisperse(64, 1.4), 2)}
+
+
+def assert_same_quench(a, b) -> None:
+    """Bit-for-bit equality of two quench results (history field by field: NaN columns)."""
+    np.testing.assert_array_equal(a.packing.positions, b.packing.positions)
+    np.testing.assert_array_equal(a.packing.diameters, b.packing.diameters)
+    np.testing.assert_array_equal(a.packing.box, b.packing.box)
+    np.testing.assert_array_equal(a.contacts, b.contacts)
+    for name in a.history.dtype.names:
+        np.testing.assert_array_equal(a.history[name], b.history[name])
+    assert (a.steps, a.status) == (b.steps, b.status)
+    assert a.extra["rebuilds"] == b.extra["rebuilds"]
+
+
+@pytest.fixture(scope="module")
+def quench_references():
+    return {name: generators.soft_quench(sizes, d, seed=7)
+            for name, (sizes, d) in QUENCH_CASES.items()}
+
+
+@pytest.mark.parametrize("case, crash", [
+    ("d3", ("steps", 0.3)), ("d3", ("steps", 0.7)), ("d3", ("tightening", 3)),
+    ("d2_bidisperse", ("steps", 0.3)), ("d2_bidisperse", ("steps", 0.8))])
+def test_quench_killed_mid_minimisation_resumes_bit_for_bit(tmp_path, monkeypatch, case,
+                                                            crash, quench_references):
+    """Killed after a fraction of its FIRE steps (an early or a late rung), or at the third
+    stretch of FIRE steps of the tightening rounds, the quench resumes from its checkpoint
+    and ends where the uninterrupted run ends."""
+    from generators import _fire
+    from generators.soft_quench import INTERMEDIATE_TOLERANCE
+
+    sizes, d = QUENCH_CASES[case]
+    reference = quench_references[case]
+    real_run, taken, tightening = _fire.fire_run, [], []
+    kind, where = crash
+
+    def crashing_run(*args):
+        tolerance = args[15]
+        tightening.extend([1] if tolerance < INTERMEDIATE_TOLERANCE else [])
+        if (sum(taken) >= where * reference.steps if kind == "steps"
+                else len(tightening) == where):
+            raise _Crash
+        result = real_run(*args)
+        taken.append(result[1])
+        return result
+
+    monkeypatch.setattr(_fire, "fire_run", crashing_run)
+    path = tmp_path / "quench.npz"
+    with pytest.raises(_Crash):
+        generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=0)
+    with np.load(path) as saved:
+        assert saved["state_fire"].size        # saved in the middle of a minimisation
+        assert (int(saved["run_round"]) > 0) == (kind == "tightening")
+    monkeypatch.setattr(_fire, "fire_run", real_run)
+    resumed = generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=0)
+    assert resumed.extra["resumed"]
+    assert_same_quench(resumed, reference)
+    # a finished run is read back, not run again
+    monkeypatch.setattr(_fire, "fire_run", None)
+    again = generators.soft_quench(sizes, d, seed=7, checkpoint=path)
+    assert_same_quench(again, reference)
+
+
+def test_quench_stopped_by_max_steps_continues_with_a_larger_limit(tmp_path, quench_references):
+    """A quench stopped by `max_steps` says so, and called again with more steps it becomes
+    the run made with them from the start."""
+    sizes, d = QUENCH_CASES["d3"]
+    reference = quench_references["d3"]
+    path = tmp_path / "staged.npz"
+    stopped = generators.soft_quench(sizes, d, seed=7, max_steps=reference.steps // 2,
+                                     checkpoint=path)
+    assert stopped.status.startswith(f"stopped at max_steps = {reference.steps // 2}")
+    assert stopped.steps == reference.steps // 2
+    same = generators.soft_quench(sizes, d, seed=7, max_steps=reference.steps // 2,
+                                  checkpoint=path)
+    assert_same_quench(same, stopped)
+    finished = generators.soft_quench(sizes, d, seed=7, checkpoint=path)
+    assert_same_quench(finished, reference)
+
+
+def test_quench_checkpoint_of_another_run_is_refused(tmp_path):
+    sizes, d = QUENCH_CASES["d3"]
+    path = tmp_path / "quench.npz"
+    generators.soft_quench(sizes, d, seed=7, max_steps=500, checkpoint=path)
+    with pytest.raises(ValueError, match=r"quench\.npz: checkpoint of another run; it differs "
+                                         r"in seed \(checkpoint 7, this call 8\)"):
+        generators.soft_quench(sizes, d, seed=8, checkpoint=path)
+    with pytest.raises(ValueError, match=r"differs in target_pressure"):
+        generators.soft_quench(sizes, d, seed=7, target_pressure=1e-6, checkpoint=path)
+    with pytest.raises(ValueError, match="checkpoint_every"):
+        generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=-1)
