@@ -10,7 +10,7 @@ from calippso.neighbors import SAME_PLACE, check_no_duplicates, contact_shrink
 from calippso.packing import Packing
 
 from ._checks import check_positive, remove_roundoff_overlap
-from .checkpoint import Checkpoint, digest
+from .checkpoint import Checkpoint, Resumable, digest
 from ._progress import Progress
 from .edmd import run_window
 from .initial import start_of
@@ -19,7 +19,7 @@ from .result import GenerationResult, make_history
 __all__ = ["lubachevsky_stillinger", "GrowingSpheres"]
 
 
-class GrowingSpheres:
+class GrowingSpheres(Resumable):
     """The state of an event-driven run (used by LS and MLS).
 
     Parameters
@@ -106,31 +106,10 @@ class GrowingSpheres:
         elif rebuilds * 4 * n < collisions:
             self.skin = max(0.05, self.skin / 1.25)
 
-    #: Attributes that, with the nominal diameters and the box, make up the whole state between
-    #: two windows (each `run_window` call starts from them alone).
-    STATE = ("x", "v", "scale", "skin", "time", "collisions", "rebuilds", "start_shrink")
-
-    def state(self) -> dict:
-        """The state between two windows, for a checkpoint (copies of the arrays)."""
-        return {f"state_{name}": np.copy(getattr(self, name)) for name in self.STATE}
-
-    def restore(self, saved: dict) -> None:
-        """Continue from a `state()` dict (as read back from a checkpoint), bit-for-bit.
-
-        Raises
-        ------
-        ValueError
-            If the saved arrays do not match this run's N and d.
-        """
-        x, v = saved["state_x"], saved["state_v"]
-        if x.shape != self.x.shape or v.shape != self.v.shape:
-            raise ValueError(f"checkpoint holds {x.shape} positions, this run has {self.x.shape}")
-        self.x = np.array(x, dtype=np.float64)
-        self.v = np.array(v, dtype=np.float64)
-        for name in ("scale", "skin", "time", "start_shrink"):
-            setattr(self, name, float(saved[f"state_{name}"]))
-        for name in ("collisions", "rebuilds"):
-            setattr(self, name, int(saved[f"state_{name}"]))
+    #: Attributes (and their types) that, with the nominal diameters and the box, make up the
+    #: whole state between two windows (each `run_window` call starts from them alone).
+    STATE = {"x": np.float64, "v": np.float64, "scale": float, "skin": float, "time": float,
+             "collisions": int, "rebuilds": int, "start_shrink": float}
 
     def packing(self) -> tuple[Packing, float]:
         """The current configuration, checked for overlaps with an independent KD-tree search.

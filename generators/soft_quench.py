@@ -21,7 +21,7 @@ from calippso.rattlers import remove_rattlers
 from . import _fire
 from ._checks import (check_diameters, check_dimension, check_phi, check_positive,
                       phi_estimate, remove_roundoff_overlap)
-from .checkpoint import Checkpoint, digest
+from .checkpoint import Checkpoint, Resumable, digest
 from ._progress import Progress
 from .cells import verlet_lists
 from .periodic import wrap_into_box
@@ -70,7 +70,7 @@ SKIN_MIN = 0.02
 PAUSE_STEPS = 1000
 
 
-class _SoftSpheres:
+class _SoftSpheres(Resumable):
     """Harmonic spheres in a periodic box, kept sorted by cell for cache locality.
 
     Parameters
@@ -124,33 +124,16 @@ class _SoftSpheres:
         self.built = 0
         self.drift = 0.0
 
-    #: Attributes that, with the nominal sizes in the sorted order (`s`), make up the whole
-    #: state at a pause (`minimise`) or between two minimisations.
-    STATE = ("x", "v", "s", "ids", "scale", "steps", "rebuilds", "skin", "x_built",
-             "scale_built", "fire", "taken", "built", "drift")
-
-    def state(self) -> dict:
-        """The state at a pause, for a checkpoint (copies of the arrays)."""
-        return {f"state_{name}": np.copy(getattr(self, name)) for name in self.STATE}
+    #: Attributes (and their types) that make up the whole state at a pause (`minimise`) or
+    #: between two minimisations.
+    STATE = {"x": np.float64, "v": np.float64, "s": np.float64, "ids": np.int64,
+             "x_built": np.float64, "fire": np.float64, "scale": float, "skin": float,
+             "scale_built": float, "drift": float, "steps": int, "rebuilds": int,
+             "taken": int, "built": int}
 
     def restore(self, saved: dict) -> None:
-        """Continue from a `state()` dict (as read back from a checkpoint), bit for bit.
-
-        Raises
-        ------
-        ValueError
-            If the saved positions do not match this run's N and d.
-        """
-        if saved["state_x"].shape != self.x.shape:
-            raise ValueError(f"checkpoint holds {saved['state_x'].shape} positions, this run "
-                             f"has {self.x.shape}")
-        for name in ("x", "v", "s", "x_built", "fire"):
-            setattr(self, name, np.array(saved[f"state_{name}"], dtype=np.float64))
-        self.ids = np.array(saved["state_ids"], dtype=np.int64)
-        for name in ("scale", "skin", "scale_built", "drift"):
-            setattr(self, name, float(saved[f"state_{name}"]))
-        for name in ("steps", "rebuilds", "taken", "built"):
-            setattr(self, name, int(saved[f"state_{name}"]))
+        """`Resumable.restore`, then the lists of a minimisation in progress."""
+        super().restore(saved)
         self.f = np.zeros_like(self.x)
         if self.fire.size:
             self._build_lists()
