@@ -397,7 +397,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         earlier_wall = float(saved["wall_time"])
 
     def pause(stopped: bool) -> None:
-        if stopped or saver.due():
+        if saver.enabled and (stopped or saver.due()):
             saver.save({**system.state(), **run.state(),
                         "wall_time": earlier_wall + time.perf_counter() - wall})
 
