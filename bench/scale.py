@@ -1,7 +1,7 @@
 """How making and jamming a packing scale with N and d: prints one table row per input.
 
-Every input is made by our generator (seed 1) and jammed in a fresh subprocess, so that the
-peak resident memory (RSS) of each row is its own. `--generator ls` (default): LS to reduced
+Every input is made by our generator (seed 1, or --seed) and jammed in a fresh subprocess,
+so that the peak resident memory (RSS) of each row is its own. `--generator ls` (default): LS to reduced
 pressure --pressure, then `jam`. `--generator quench`: the soft-sphere quench
 (`generators.soft_quench`), then `jam` with the quench's overlap network as the hint
 (network first: certified by Newton, no LP). Run from the repository root:
@@ -13,6 +13,9 @@ pressure --pressure, then `jam`. `--generator quench`: the soft-sphere quench
     python bench/scale.py --from-json a.json b.json --plot docs/images/scale.png
     python bench/scale.py --generator quench --cases 3:1024 3:4096 3:16384 --json quench.json
     python bench/scale.py --generator quench --quench-pressure 1e-6 --cases 4:1024
+    python bench/scale.py --generator quench --seed 2 --cases 4:1024 5:1024
+    python bench/scale.py --generator quench --quench-pressure 1e-8 --cases 3:16384 \
+        --set network_first=require          # fails fast when network first cannot settle
 
 With --from-json no case is run: the rows are read back (later files win for the same N, d),
 printed, and with --plot drawn as wall time and LPs against N on log-log axes, with the
@@ -23,7 +26,8 @@ largest LP (candidate pairs when no LP ran), total wall time of `jam` (s), wall 
 both (make + jam, s), share of the jam time inside the LP solver, peak RSS (MB), phi_J,
 isostatic, force balance, smallest relative gap of the result (≥ −1e-12: no overlap).
 The growth exponents of the jam and end-to-end times over the d = 3 rows close the table.
-A case that exceeds --timeout is reported as such.
+A case that exceeds --timeout is reported as such, and one whose `jam` raises JammingError
+(with `--set network_first=require`) with the time spent making and jamming it.
 """
 
 from __future__ import annotations
@@ -45,9 +49,10 @@ CHILD = textwrap.dedent("""
     from calippso.neighbors import pairs_within
     d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
     options, generator, quench_pressure = json.loads(sys.argv[5]), sys.argv[6], float(sys.argv[7])
+    seed = int(sys.argv[8])
     name = (f"ls_d{d}_n{n}_p{pressure:g}" if generator == "ls"
             else f"quench_d{d}_n{n}_p{quench_pressure:g}")
-    path = os.path.join(cache, f"{name}_seed1.npz") if cache else ""
+    path = os.path.join(cache, f"{name}_seed{seed}.npz") if cache else ""
     clock = time.perf_counter()
     if path and os.path.exists(path):
         start = calippso.read(path)
@@ -59,9 +64,9 @@ CHILD = textwrap.dedent("""
         sizes = generators.diameters.monodisperse(n)
         if generator == "ls":
             made = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
-                                                     seed=1)
+                                                     seed=seed)
         else:
-            made = generators.soft_quench(sizes, d, seed=1, target_pressure=quench_pressure)
+            made = generators.soft_quench(sizes, d, seed=seed, target_pressure=quench_pressure)
         start, network = made.packing, getattr(made, "contacts", None)
         generate = time.perf_counter() - clock
         if path:
@@ -69,7 +74,12 @@ CHILD = textwrap.dedent("""
             np.savez(path, positions=start.positions, diameters=start.diameters,
                      box=start.box, **extra)
     clock = time.perf_counter()
-    result = calippso.jam(start, network=network, **options)
+    try:
+        result = calippso.jam(start, network=network, **options)
+    except calippso.JammingError as error:   # e.g. network_first="require" refused
+        print(json.dumps({"n": n, "d": d, "generator": generator, "generate": generate,
+                          "total": time.perf_counter() - clock, "error": str(error)}))
+        sys.exit(0)
     total = time.perf_counter() - clock
     history = result.history
     packing = result.packing
@@ -88,12 +98,13 @@ CHILD = textwrap.dedent("""
 
 def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "",
              options: dict | None = None, generator: str = "ls",
-             quench_pressure: float = 1e-7) -> dict:
+             quench_pressure: float = 1e-7, seed: int = 1) -> dict:
     """Generate (or read from `cache`) and jam one input in a subprocess with the jam
     `options`; the row as a dict."""
     try:
         done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache,
-                               json.dumps(options or {}), generator, str(quench_pressure)],
+                               json.dumps(options or {}), generator, str(quench_pressure),
+                               str(seed)],
                               capture_output=True, text=True, timeout=timeout, check=True)
     except subprocess.TimeoutExpired:
         return {"n": n, "d": d, "timeout": timeout}
@@ -107,7 +118,9 @@ def format_row(row: dict) -> str:
     if "timeout" in row:
         return f"{head}  not finished within {row['timeout']:.0f} s"
     if "error" in row:
-        return f"{head}  error: {row['error']}"
+        spent = (f" after {row.get('generate', float('nan')):.1f} s making and "
+                 f"{row['total']:.1f} s jamming" if "total" in row else "")
+        return f"{head}  error{spent}: {row['error']}"
     per_lp = row["total"] / max(row["lps"], 1)
     both = row.get("generate", float("nan")) + row["total"]
     return (f"{head} {row.get('generate', float('nan')):>9.1f} {row['lps']:>4} {row['rows']:>8} "
@@ -122,7 +135,7 @@ def growth_exponent(rows: list[dict], end_to_end: bool = False) -> float | None:
     time of `jam`, or with `end_to_end` that of making the input and jamming it."""
     import numpy as np
 
-    done = [row for row in rows if row["d"] == 3 and "total" in row]
+    done = [row for row in rows if row["d"] == 3 and "total" in row and "error" not in row]
     if len(done) < 2:
         return None
     times = [r["total"] + (r.get("generate", 0.0) if end_to_end else 0.0) for r in done]
@@ -137,7 +150,8 @@ def plot(rows: list[dict], path: str) -> None:
 
     figure, (left, right) = plt.subplots(1, 2, figsize=(9, 3.8))
     for d, marker in ((3, "o"), (4, "s"), (5, "^")):
-        done = sorted((r for r in rows if r["d"] == d and "total" in r), key=lambda r: r["n"])
+        done = sorted((r for r in rows if r["d"] == d and "total" in r and "error" not in r),
+                      key=lambda r: r["n"])
         if not done:
             continue
         n = [r["n"] for r in done]
@@ -189,6 +203,7 @@ def main() -> None:
                         help="LS to --pressure, or the soft-sphere quench (network first)")
     parser.add_argument("--quench-pressure", type=float, default=1e-7,
                         help="target_pressure of the soft-sphere quench")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the generator")
     parser.add_argument("--timeout", type=float, default=3600.0, help="seconds per case")
     parser.add_argument("--json", help="also write the rows to this JSON file")
     parser.add_argument("--cache", default="", help="folder where LS inputs are kept and reused")
@@ -212,7 +227,7 @@ def main() -> None:
     for case in args.cases:
         d, n = (int(v) for v in case.split(":"))
         rows.append(run_case(d, n, args.pressure, args.timeout, args.cache, options,
-                             args.generator, args.quench_pressure))
+                             args.generator, args.quench_pressure, args.seed))
         print(format_row(rows[-1]), flush=True)
         if args.json:
             with open(args.json, "w") as stream:
