@@ -5,12 +5,9 @@ All lengths are in units of the mean diameter of the input packing.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, fields, replace
 
-from .solvers.registry import backend_names, check_backend_name
-
-__all__ = ["JamSettings"]   # SOLVERS is deprecated (module __getattr__), not exported
+__all__ = ["JamSettings"]
 
 #: Values accepted by ``jam(..., network_first=...)``.
 NETWORK_FIRST_MODES = ("auto", "off", "require")
@@ -38,7 +35,8 @@ class JamSettings:
         any backend added with `calippso.solvers.register_backend`.
     fallback_solvers : tuple of str
         Backends tried, in order, when the chosen one fails twice on the same LP (a list is
-        stored as a tuple). Every name must be a registered backend.
+        stored as a tuple). The names of `solver` and `fallback_solvers` are checked against
+        the registry when `jam` starts (`calippso.solvers.policy.prepare_backends`).
     tol_gamma : float
         Convergence when √Γ − 1 < tol_gamma.
     tol_s : float
@@ -125,13 +123,10 @@ class JamSettings:
     verbose: bool = False
 
     def __post_init__(self) -> None:
-        check_backend_name(self.solver, "solver")
         if isinstance(self.fallback_solvers, str):
             raise TypeError(f"fallback_solvers must be a sequence of backend names, not the "
                             f"string {self.fallback_solvers!r}")
         object.__setattr__(self, "fallback_solvers", tuple(self.fallback_solvers))
-        for name in self.fallback_solvers:
-            check_backend_name(name, "fallback solver")
         if self.network_first not in NETWORK_FIRST_MODES:
             raise ValueError(f"unknown network_first {self.network_first!r}: choose one of "
                              f"{', '.join(NETWORK_FIRST_MODES)}")
@@ -168,11 +163,3 @@ class JamSettings:
         """A copy with some fields changed."""
         return replace(self, **changes)
 
-
-def __getattr__(name: str):
-    if name == "SOLVERS":
-        warnings.warn("calippso.settings.SOLVERS is deprecated: use "
-                      "calippso.solvers.backend_names(), which also lists the backends added "
-                      "with register_backend", DeprecationWarning, stacklevel=2)
-        return backend_names()
-    raise AttributeError(f"module 'calippso.settings' has no attribute {name!r}")

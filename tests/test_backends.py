@@ -44,15 +44,23 @@ def test_built_in_backends_are_registered_first():
         assert isinstance(options, backend.options_type)
 
 
-@pytest.mark.parametrize("settings, pattern", [
+@pytest.mark.parametrize("options, pattern", [
     (dict(solver="gurobi"), r"^unknown solver 'gurobi': choose one of highs, clarabel, cvxpy"),
     (dict(fallback_solvers=("highs", "clarable")),
      r"^unknown fallback solver 'clarable': choose one of highs, clarabel, cvxpy"),
-    (dict(interior_point="simplex"), r"^unknown interior_point 'simplex'"),
-], ids=["solver", "fallback", "interior-point"])
-def test_unknown_names_are_refused_when_settings_are_built(settings, pattern):
+], ids=["solver", "fallback"])
+def test_unknown_backend_names_are_refused_when_jam_starts(small_start, options, pattern):
+    """Settings hold any name (a backend may be registered later); jam checks the names
+    against the registry before any LP."""
+    settings = JamSettings(**options)
+    assert {name: getattr(settings, name) for name in options} == options
     with pytest.raises(ValueError, match=pattern):
-        JamSettings(**settings)
+        jam(small_start, **options)
+
+
+def test_unknown_interior_point_is_refused_when_settings_are_built():
+    with pytest.raises(ValueError, match=r"^unknown interior_point 'simplex'"):
+        JamSettings(interior_point="simplex")
 
 
 def test_fallback_solvers_must_be_a_sequence_of_names():
@@ -67,13 +75,6 @@ def test_register_backend_refuses_incomplete_objects_and_taken_names():
         register_backend(SimpleNamespace(name="half"))
     with pytest.raises(ValueError, match="'highs' is already registered"):
         register_backend(get_backend("highs"))
-
-
-def test_the_deprecated_solvers_tuple_warns_and_lists_the_registry():
-    import calippso.settings
-
-    with pytest.warns(DeprecationWarning, match="backend_names"):
-        assert calippso.settings.SOLVERS == backend_names()
 
 
 def test_cli_offers_the_registered_backends():

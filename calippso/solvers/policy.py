@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import SolverError
 from .backend import Backend
 from .base import Basis, LPSolution
-from .registry import get_backend
+from .registry import check_backend_name, get_backend
 
 if TYPE_CHECKING:
     from ..lp import LinearProgram
@@ -118,12 +118,19 @@ class PreparedBackend:
 def prepare_backends(settings: "JamSettings") -> dict[str, PreparedBackend]:
     """The chosen backend and the fallbacks of `settings`, each with its options, validated.
 
+    Every name is checked against the registry before any backend's module is imported.
+
     Raises
     ------
     ValueError
-        If a backend cannot run with these settings here (e.g. ``interior_point="hipo"``
-        without the HiPO build of HiGHS), before any LP is built.
+        If a name is not registered (the message names it, as the solver or a fallback
+        solver, and the registered names), or if a backend cannot run with these settings
+        here (e.g. ``interior_point="hipo"`` without the HiPO build of HiGHS), before any LP
+        is built.
     """
+    check_backend_name(settings.solver, "solver")
+    for name in settings.fallback_solvers:
+        check_backend_name(name, "fallback solver")
     prepared = {}
     for name in (settings.solver, *settings.fallback_solvers):
         if name in prepared:

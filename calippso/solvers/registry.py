@@ -1,7 +1,8 @@
 """The registry of LP backends: the one place where a backend is added.
 
 The built-in backends are registered by module path and imported on first use (`get_backend`),
-so that listing the names (`backend_names`, the CLI's choices, `JamSettings` validation)
+so that listing and checking the names (`backend_names`, the CLI's choices, the check of
+``jam``'s ``solver`` and ``fallback_solvers`` in `calippso.solvers.policy.prepare_backends`)
 loads no LP library.
 """
 
