@@ -164,6 +164,43 @@ def test_read_refuses(tmp_path, name, content, error, pattern):
         calippso.read(path)
 
 
+def _packing_generation_folder(tmp: Path, boundaries_line: str) -> Path:
+    """GOOD written as a PackingGeneration folder, `boundaries_line` added to its conf."""
+    folder = tmp / "pg"
+    calippso.write(GOOD, folder / "packing.xyzd")
+    conf = folder / "generation.conf"
+    conf.write_text(conf.read_text() + boundaries_line + "\n")
+    return folder
+
+
+@pytest.mark.parametrize("line, pattern", [
+    ("Boundaries mode: 2", r"boundaries mode 2 \(periodic in z inside a circle in xy\) is not "
+                           r"supported; calippso reads periodic packings \(mode 1\) only$"),
+    ("Boundaries mode: 3", r"boundaries mode 3 \(periodic in z inside a rectangle in xy\) is "
+                           r"not supported"),
+    ("Boundaries mode: 4", r"boundaries mode 4 \(periodic in z inside a trapezoid in xy\) is "
+                           r"not supported"),
+    ("Boundaries mode: 7", r"unknown boundaries mode 7; PackingGeneration's modes are 1, 2, 3, "
+                           r"4$"),
+    ("Boundaries mode: cylinder", r"'Boundaries mode:' is not an integer: 'cylinder'$"),
+], ids=["cylinder", "rectangle", "trapezoid", "unknown-mode", "non-numeric-mode"])
+def test_packing_generation_containers_are_refused(tmp_path, line, pattern):
+    """A container packing is never read as a periodic one: one line naming the file."""
+    folder = _packing_generation_folder(tmp_path, line)
+    with pytest.raises(ValueError, match=pattern) as refused:
+        calippso.read(folder)
+    message = str(refused.value)
+    assert message.startswith(f"{folder / 'generation.conf'}: ") and "\n" not in message
+
+
+def test_packing_generation_periodic_mode_is_read(tmp_path):
+    """Mode 1, as in PackingGeneration's own files, reads as the file without the line."""
+    packing = calippso.read(_packing_generation_folder(tmp_path, "Boundaries mode: 1"))
+    np.testing.assert_array_equal(packing.box, GOOD.box)
+    np.testing.assert_allclose(packing.positions, GOOD.wrapped().positions, rtol=0, atol=0)
+    np.testing.assert_allclose(packing.diameters, GOOD.diameters, rtol=1e-15)
+
+
 def test_npz_without_packing_keys_is_refused(tmp_path):
     path = tmp_path / "other.npz"
     np.savez(path, weights=np.ones(3))
@@ -213,7 +250,10 @@ CLI = [sys.executable, "-m", "calippso"]
     (lambda tmp: _write(tmp, "nan.dat", SKOGE_HEADER + "0 0 0\n1 1 1\nnan 2 2\n0.5 2.5 1\n"),
      r"non-finite"),
     (lambda tmp: _write(tmp, "garbage.npz", b"PK\x03\x04 not a zip"), r"unreadable \.npz"),
-], ids=["missing", "unknown-format", "truncated", "non-numeric", "nan", "garbage-npz"])
+    (lambda tmp: _packing_generation_folder(tmp, "Boundaries mode: 2"),
+     r"generation\.conf: boundaries mode 2 .* is not supported"),
+], ids=["missing", "unknown-format", "truncated", "non-numeric", "nan", "garbage-npz",
+        "packing-generation-cylinder"])
 def test_cli_reports_bad_files(tmp_path, make, pattern):
     path = make(tmp_path)
     done = subprocess.run([*CLI, "jam", str(path), "-o", str(tmp_path / "out.npz")],

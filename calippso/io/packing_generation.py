@@ -2,7 +2,9 @@
 
 `packing.xyzd` holds little-endian float64 (x, y, z, d) per particle, d the nominal diameter.
 The true diameters are d · ((1 − final porosity)/(1 − theoretical porosity))^(1/3), with the
-porosities from `packing.nfo`. The box side comes from "Packing size:" in `generation.conf`.
+porosities from `packing.nfo`. The box side comes from "Packing size:" in `generation.conf`,
+and its "Boundaries mode:" must be 1 (periodic; a file without the line, as `write` makes, is
+periodic): the other modes are containers, which calippso does not read.
 """
 
 from __future__ import annotations
@@ -13,6 +15,14 @@ from pathlib import Path
 import numpy as np
 
 from ..packing import Packing
+
+#: PackingGeneration's "Boundaries mode:" values and what each means.
+BOUNDARIES_MODES = {1: "periodic in x, y and z",
+                    2: "periodic in z inside a circle in xy",
+                    3: "periodic in z inside a rectangle in xy",
+                    4: "periodic in z inside a trapezoid in xy"}
+#: The one mode calippso reads.
+PERIODIC_MODE = 1
 
 
 def _field(text: str, label: str, path: Path) -> list[float]:
@@ -25,6 +35,26 @@ def _field(text: str, label: str, path: Path) -> list[float]:
         raise ValueError(f"{path}: '{label}:' is not numeric: {match.group(1)!r}") from None
 
 
+def _check_boundaries_mode(text: str, path: Path) -> None:
+    """Raise ValueError naming `path` and the mode unless the "Boundaries mode:" line of
+    `generation.conf` (text `text`) is absent or `PERIODIC_MODE`."""
+    match = re.search(r"Boundaries mode\s*:\s*([^\n]*)", text)
+    if not match:
+        return
+    value = match.group(1).strip()
+    try:
+        mode = int(value)
+    except ValueError:
+        raise ValueError(f"{path}: 'Boundaries mode:' is not an integer: {value!r}") from None
+    if mode not in BOUNDARIES_MODES:
+        raise ValueError(f"{path}: unknown boundaries mode {mode}; PackingGeneration's modes "
+                         f"are {', '.join(map(str, BOUNDARIES_MODES))}")
+    if mode != PERIODIC_MODE:
+        raise ValueError(f"{path}: boundaries mode {mode} ({BOUNDARIES_MODES[mode]}) is not "
+                         f"supported; calippso reads periodic packings (mode {PERIODIC_MODE}) "
+                         f"only")
+
+
 def read(path: Path) -> Packing:
     """Read a PackingGeneration folder (or its `.xyzd` file with the two text files beside it)."""
     path = Path(path)
@@ -35,11 +65,12 @@ def read(path: Path) -> Packing:
         if not needed.exists():
             raise ValueError(f"{xyzd}: {needed.name} is missing beside it (needed for the "
                              f"{'box size' if needed is conf else 'diameter rescaling'})")
+    conf_text = conf.read_text()
+    _check_boundaries_mode(conf_text, conf)
     raw = np.fromfile(xyzd, dtype="<f8")
     if raw.size == 0 or raw.size % 4:
         raise ValueError(f"{xyzd}: {raw.size * 8} bytes is not a whole number of (x, y, z, d) records")
     records = raw.reshape(-1, 4)
-    conf_text = conf.read_text()
     box = np.array(_field(conf_text, "Packing size", conf))
     count = _field(conf_text, "Particles count", conf)[0]
     if int(count) != records.shape[0]:
