@@ -13,7 +13,8 @@ from click.testing import CliRunner
 
 import calippso
 from calippso import Packing
-from calippso.cli import LPProgress, cli, main
+from calippso.cli import cli, main
+from calippso.cli.progress import LPProgress
 from calippso.history import HISTORY_COLUMNS, history_from_records
 
 

@@ -1,0 +1,260 @@
+"""``calippso generate``: make a configuration (ls, quench, fb, mls, spherocylinders)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..protocols import make_diameters
+from .common import (checkpoint_option, diameter_options, final_growth_rate_option, naming,
+                     output_options, output_path, positive)
+
+
+def _generation_record(protocol: str, generation, output: Path) -> tuple[dict, str]:
+    """The JSON record and the text summary of a generation written to `output`."""
+    packing = generation.packing
+    record = {
+        "command": "generate",
+        "protocol": protocol,
+        "n": packing.n,
+        "d": packing.d,
+        "phi": packing.phi,
+        "reduced_pressure": generation.reduced_pressure,
+        "steps": generation.steps,
+        "wall_time": generation.wall_time,
+        "status": generation.status,
+        "output": str(output),
+    }
+    text = (
+        f"{protocol}: N = {packing.n}, d = {packing.d}, phi = {packing.phi:.6f}, "
+        f"p = {generation.reduced_pressure:.3g}, {generation.wall_time:.1f} s "
+        f"({generation.status}) -> {output}"
+    )
+    return record, text
+
+
+@click.group()
+def generate() -> None:
+    """Make a configuration: ls, fb, mls (closest jamming) or spherocylinders."""
+
+
+@generate.command("ls")
+@diameter_options
+@click.option(
+    "--pressure",
+    type=positive(float),
+    default=1e5,
+    show_default=True,
+    help="Target reduced pressure p = βP/ρ.",
+)
+@click.option(
+    "--growth-rate",
+    type=positive(float),
+    default=1e-2,
+    show_default=True,
+    help="Growth rate dσ/dt.",
+)
+@final_growth_rate_option
+@click.option(
+    "--slowdown-pressure",
+    type=positive(float),
+    default=1e3,
+    show_default=True,
+    help="Reduced pressure at which --final-growth-rate takes over.",
+)
+@checkpoint_option
+@output_path()
+@output_options
+def generate_ls(
+    n, d, distribution, ratio, std, seed, pressure, growth_rate, final_growth_rate,
+    slowdown_pressure, checkpoint, output, out
+):
+    """Lubachevsky–Stillinger compression from random centres to a target pressure."""
+    import calippso
+    import generators
+
+    sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
+    generation = generators.lubachevsky_stillinger(
+        sizes,
+        d,
+        target_pressure=pressure,
+        growth_rate=growth_rate,
+        final_growth_rate=final_growth_rate,
+        slowdown_pressure=slowdown_pressure,
+        seed=seed,
+        progress=out.progress,
+        checkpoint=checkpoint,
+    )
+    return _generation_record("ls", generation, calippso.write(generation.packing, output))
+
+
+@generate.command("quench")
+@diameter_options
+@click.option(
+    "--pressure",
+    type=positive(float),
+    default=1e-7,
+    show_default=True,
+    help="Stop once the soft-sphere pressure is at or below this (energy / mean diameter^d).",
+)
+@checkpoint_option
+@output_path()
+@output_options
+def generate_quench(n, d, distribution, ratio, std, seed, pressure, checkpoint, output, out):
+    """Soft-sphere quench to a vanishing pressure, then shrunk to hard contact.
+
+    The start of a large packing: `calippso jam OUTPUT --network OUTPUT` certifies its
+    jamming point with no LP. A .npz OUTPUT keeps the overlap network as 'contacts'.
+    """
+    import calippso
+    import generators
+    from ..atomic import save_npz_atomic
+
+    sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
+    generation = generators.soft_quench(sizes, d, seed=seed, target_pressure=pressure,
+                                        progress=out.progress, checkpoint=checkpoint)
+    packing = generation.packing
+    if output.suffix.lower() == ".npz" and generation.contacts is not None:
+        save_npz_atomic(output, {"positions": packing.positions, "diameters": packing.diameters,
+                                 "box": packing.box, "contacts": generation.contacts})
+        written = output
+    else:
+        written = calippso.write(packing, output)
+    return _generation_record("quench", generation, written)
+
+
+@generate.command("fb")
+@diameter_options
+@click.option(
+    "--contraction-rate",
+    type=positive(float),
+    default=1e-3,
+    show_default=True,
+    help="Force-biased contraction rate τ (slower is denser).",
+)
+@output_path()
+@output_options
+def generate_fb(n, d, distribution, ratio, std, seed, contraction_rate, output, out):
+    """Force-biased packing from random centres."""
+    import calippso
+    import generators
+
+    sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
+    generation = generators.force_biased(
+        sizes, d, contraction_rate=contraction_rate, seed=seed, progress=out.progress
+    )
+    return _generation_record("fb", generation, calippso.write(generation.packing, output))
+
+
+@generate.command("mls")
+@diameter_options
+@click.option(
+    "--input",
+    "input_path",
+    type=click.Path(path_type=Path),
+    help="Start configuration (default: random centres at phi = 0.3).",
+)
+@click.option(
+    "--final-rate", type=positive(float), default=1e-4, show_default=True, help="Final growth rate."
+)
+@checkpoint_option
+@output_path()
+@output_options
+def generate_mls(
+    n, d, distribution, ratio, std, seed, input_path, final_rate, checkpoint, output, out
+):
+    """Closest jammed configuration (modified LS) of a start configuration."""
+    import calippso
+    import generators
+
+    if input_path is not None:
+        with naming(input_path):
+            start = {"start": calippso.read(input_path)}
+    else:
+        start = {"diameters": make_diameters(n, distribution, ratio=ratio, std=std, seed=seed),
+                 "d": d}
+    with naming(input_path):
+        generation = generators.closest_jamming(
+            **start, final_rate=final_rate, seed=seed, progress=out.progress,
+            checkpoint=checkpoint
+        )
+    with naming(output):
+        written = calippso.write(generation.packing, output)
+    return _generation_record("mls", generation, written)
+
+
+@generate.command("spherocylinders")
+@click.option(
+    "--n",
+    "n",
+    type=click.IntRange(min=2),
+    default=500,
+    show_default=True,
+    help="Number of particles.",
+)
+@click.option(
+    "--aspect-ratio",
+    type=click.FloatRange(min=0),
+    default=0.4,
+    show_default=True,
+    help="Cylinder length over diameter γ = l/d.",
+)
+@click.option(
+    "--contraction-rate",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=1e-4,
+    show_default=True,
+    help="Contraction rate τ.",
+)
+@click.option(
+    "--initial-density",
+    type=click.FloatRange(0, 2, min_open=True, max_open=True),
+    default=None,
+    help="Nominal density of the start [default: min(1.2, 12/γ), lower if N is too small "
+    "for it].",
+)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
+@checkpoint_option
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="Output extended XYZ file (.xyz) with orientations.",
+)
+@output_options
+def generate_spherocylinders(n, aspect_ratio, contraction_rate, initial_density, seed,
+                             checkpoint, output, out):
+    """Force-biased packing of spherocylinders (d = 3), written as extended XYZ."""
+    from generators import spherocylinders
+
+    if output.suffix.lower() != ".xyz":
+        raise click.BadParameter(
+            "spherocylinders are written as extended XYZ: use a .xyz name", param_hint="'-o'"
+        )
+    generation = spherocylinders.force_biased(
+        n, aspect_ratio, contraction_rate=contraction_rate, initial_density=initial_density,
+        seed=seed, progress=out.progress, checkpoint=checkpoint
+    )
+    spherocylinders.write_xyz(generation.packing, output)
+    packing = generation.packing
+    record = {
+        "command": "generate",
+        "protocol": "spherocylinders",
+        "n": n,
+        "aspect_ratio": aspect_ratio,
+        "initial_density": generation.extra["initial_density"],
+        "phi": packing.phi,
+        "nematic_order": packing.nematic_order(),
+        "steps": generation.steps,
+        "wall_time": generation.wall_time,
+        "status": generation.status,
+        "output": str(output),
+    }
+    text = (
+        f"spherocylinders: N = {n}, aspect ratio {aspect_ratio}, phi = {packing.phi:.6f}, "
+        f"S = {record['nematic_order']:.3f}, {generation.wall_time:.1f} s -> {output}"
+    )
+    return record, text

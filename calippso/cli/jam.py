@@ -1,0 +1,153 @@
+"""``calippso jam``: jam a packing read from a file, write the result.
+
+Its options are the decorators of `jam`; each is passed on to `calippso.jam` in the body.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+
+from ..settings import INTERIOR_POINT_SOLVERS, NETWORK_FIRST_MODES
+from .common import (checkpoint_option, naming, output_options, output_path, positive,
+                     solver_option)
+from .progress import jam_with_progress
+
+if TYPE_CHECKING:
+    import numpy as np
+
+
+def _contacts_of(path: Path) -> np.ndarray:
+    """The (M, 2) 'contacts' array of an .npz file (a network hint for `jam`)."""
+    import numpy as np
+
+    from ..io.npz import load_arrays
+
+    arrays = load_arrays(path)
+    if "contacts" not in arrays:
+        raise ValueError("no 'contacts' array in this file (expected a jammed result, or a "
+                         "start that carries its contact network)")
+    return np.asarray(arrays["contacts"])
+
+
+def jam_record(result, source, output: Path | None) -> dict:
+    """The JSON record of a jamming run: its input, `calippso.analysis.record.run_record`
+    and the output path."""
+    from ..analysis.record import run_record
+
+    return {
+        "command": "jam",
+        "input": str(source),
+        **run_record(result),
+        "output": None if output is None else str(output),
+    }
+
+
+@click.command()
+@click.argument("input_path", metavar="INPUT", type=click.Path(path_type=Path))
+@output_path()
+@solver_option
+@click.option(
+    "--interior-point",
+    type=click.Choice(INTERIOR_POINT_SOLVERS),
+    default="auto",
+    show_default=True,
+    help="HiGHS interior point for LPs solved from scratch (auto: HiPO for large LPs when "
+    "installed, else IPX; hipo needs calippso[hipo]).",
+)
+@click.option(
+    "--tol-gamma",
+    type=positive(float),
+    default=1e-12,
+    show_default=True,
+    help="Converged when √Γ − 1 is below this ...",
+)
+@click.option(
+    "--tol-s",
+    type=positive(float),
+    default=1e-9,
+    show_default=True,
+    help="... and max |s| over non-rattlers (mean diameters) is below this.",
+)
+@click.option(
+    "--max-iters",
+    type=positive(int),
+    default=1000,
+    show_default=True,
+    help="Largest number of LPs.",
+)
+@click.option(
+    "--precompress",
+    "precompress_pressure",
+    type=positive(float),
+    default=None,
+    help="First compress a loose input by Lubachevsky-Stillinger MD to this reduced pressure "
+    "(e.g. 1e5), then run the LP loop; with --checkpoint that stage keeps its own state file "
+    "(*.precompress.npz).",
+)
+@click.option(
+    "--network-first",
+    type=click.Choice(NETWORK_FIRST_MODES),
+    default="auto",
+    show_default=True,
+    help="Before any LP, certify the input's own contact network by Newton (auto: then LPs "
+    "if that fails; off: LPs only; require: fail instead of running an LP).",
+)
+@click.option(
+    "--network",
+    "network_path",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    default=None,
+    help="An .npz file whose 'contacts' array (M, 2) is tried first as the contact network "
+    "(a jammed result, or a start that carries its network).",
+)
+@checkpoint_option
+@output_options
+def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
+        precompress_pressure, network_first, network_path, checkpoint, out):
+    """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
+
+    A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
+    """
+    import calippso
+
+    from .. import protocols
+
+    network = None
+    if network_path is not None:
+        with naming(network_path):
+            network = _contacts_of(network_path)
+    compression = None
+    with naming(input_path):
+        packing = calippso.read(input_path)
+        if precompress_pressure is not None:
+            compression = protocols.precompress(
+                packing, precompress_pressure,
+                checkpoint=protocols.precompress_checkpoint(checkpoint))
+            note = protocols.precompress_note(packing, compression)
+            packing = compression.packing
+        result = jam_with_progress(
+            packing,
+            out.progress,
+            solver=solver,
+            interior_point=interior_point,
+            tol_gamma=tol_gamma,
+            tol_s=tol_s,
+            max_iters=max_iters,
+            network_first=network_first,
+            network=network,
+            checkpoint=checkpoint,
+        )
+    with naming(output):
+        written = calippso.write(result, output)
+    record = jam_record(result, input_path, written)
+    text = f"{result.summary()}\n-> {written}"
+    if compression is not None:
+        record["precompress"] = {"note": note, "phi": compression.packing.phi,
+                                 "reduced_pressure": compression.reduced_pressure,
+                                 "steps": compression.steps,
+                                 "wall_time": compression.wall_time}
+        text = f"{note}\n{text}"
+    return record, text

@@ -1,0 +1,111 @@
+"""``calippso report``: analyse jammed results and write one pooled report."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from .common import naming, output_options
+
+
+@click.command()
+@click.argument(
+    "results",
+    metavar="RESULT...",
+    nargs=-1,
+    required=True,
+    type=click.Path(path_type=Path),
+)
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(file_okay=False, path_type=Path),
+    required=True,
+    help="Folder for the report.",
+)
+@click.option(
+    "--model",
+    type=click.Choice(["auto", "power_law", "cutoff"]),
+    default=None,
+    help="Model of every exponent fit: pure power law, power law with exponential cut-off, or "
+    "the one a likelihood-ratio test picks (default: power_law for gaps, auto for forces; "
+    "docs/analysis.md).",
+)
+@click.option(
+    "--rule",
+    type=click.Choice(["bucklers", "weakest", "response"]),
+    default="bucklers",
+    show_default=True,
+    help="Which forces are localised: every force on a buckler, only each buckler's weakest "
+    "force, or the contacts whose opening moves one particle (isostatic packings only; "
+    "docs/analysis.md).",
+)
+@output_options
+def report(results, output, model, rule, out):
+    """Analyse jammed results (.npz/.h5 files, or folders of them such as an ensemble's) and
+    write one pooled report to a folder."""
+    files, loaded, skipped = read_results(results)
+    page = make_report(loaded, output, model=model, rule=rule)
+    warnings = json.loads((page.parent / "summary.json").read_text()).get("warnings", [])
+    record = {"command": "report", "results": [str(p) for p in files],
+              "skipped": [str(p) for p in skipped], "report": str(page), "warnings": warnings}
+    lines = [f"report of {len(loaded)} packing(s) -> {page}"]
+    if skipped:
+        lines.append(f"skipped {len(skipped)} file(s) that hold no result: "
+                     + ", ".join(p.name for p in skipped))
+    lines += [f"warning: {warning}" for warning in warnings]
+    return record, "\n".join(lines)
+
+
+#: Extensions of the result files `report` looks for in a folder.
+RESULT_SUFFIXES = (".npz", ".h5", ".hdf5")
+
+
+def read_results(paths: tuple[Path, ...]) -> tuple[list[Path], list, list[Path]]:
+    """Read the results named by `paths`: the files read, their results, the files skipped.
+
+    A file must be a result file. A folder (such as one made by ``calippso ensemble``) gives
+    its `RESULT_SUFFIXES` files, sorted by name; those that hold no result (the state files
+    of an unfinished run) are skipped.
+
+    Raises
+    ------
+    ValueError
+        A file that is not a result file, or a folder without one (the message names it).
+    """
+    from ..io import read_result
+
+    files, results, skipped = [], [], []
+    for path in paths:
+        if not path.is_dir():
+            with naming(path):
+                results.append(read_result(path))
+            files.append(path)
+            continue
+        before = len(results)
+        for candidate in sorted(p for p in path.iterdir()
+                                if p.is_file() and p.suffix.lower() in RESULT_SUFFIXES):
+            try:
+                results.append(read_result(candidate))
+            except ValueError:
+                skipped.append(candidate)
+            else:
+                files.append(candidate)
+        if len(results) == before:
+            raise ValueError(f"{path}: a folder with no result file "
+                             f"({', '.join(RESULT_SUFFIXES)}) in it")
+    return files, results, skipped
+
+
+def make_report(results: list, folder: Path, **options) -> Path:
+    """`calippso.report`, with a clear error where the reporting package is not installed."""
+    import calippso
+
+    try:
+        build = calippso.report
+    except AttributeError:
+        raise click.ClickException("this calippso has no report module (calippso.report)") from None
+    return Path(build(results, folder, **options))
