@@ -1,11 +1,12 @@
 """The history of one `calippso.jam` run, in one place.
 
 One `Record` per stage of the run: every LP of the loop ("lp"), the force clean-up LP
-("cleanup"), every contact network guessed from the input ("guess") and every certified
-Newton stage ("newton"). `History` keeps them in order with the run's notes (what was
-repaired, retried or tried), prints them when verbose, and stores them as the structured
-array `JammingResult.history`. `StopReason` says why the loop stopped, and `status_sentence`
-turns it, the last step and the notes into the one sentence users read.
+("cleanup"), every contact network guessed from the input ("guess"), every path of contact
+pivots that reached a jamming point ("pivots") and every certified Newton stage ("newton").
+`History` keeps them in order with the run's notes (what was repaired, retried or tried),
+prints them when verbose, and stores them as the structured array `JammingResult.history`.
+`StopReason` says why the loop stopped, and `status_sentence` turns it, the last step and
+the notes into the one sentence users read.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ STALL_ENDS = 5
 #: every LP, the Newton stage if it ran, and the force clean-up LP if one was needed).
 HISTORY_COLUMNS: dict[str, tuple[object, str]] = {
     "stage": ("U8", "'guess' (a contact network read from the input, before any LP), "
-                    "'lp', 'newton' (contact equations solved and certified) or 'cleanup'"),
+                    "'lp', 'pivots' (contact pivots from a network with non-positive forces), "
+                    "'newton' (contact equations solved and certified) or 'cleanup'"),
     "wall_time": (np.float64, "seconds since the call to jam, at the end of this iteration"),
     "solver_time": (np.float64, "seconds inside the LP solver for this iteration, retried and "
                                 "discarded attempts included"),
@@ -46,6 +48,7 @@ HISTORY_COLUMNS: dict[str, tuple[object, str]] = {
     "force_balance": (np.float64, "max |Σ f n| / mean force over stable particles"),
     "min_gap": (np.float64, "smallest h_ij = |r_ij|/σ_ij − 1 after the update"),
     "phi": (np.float64, "packing fraction after the update"),
+    "pivots": (np.int64, "contact pivots taken in this stage (0 but in a 'pivots' record)"),
 }
 
 #: The structured dtype of `JammingResult.history` (fields `HISTORY_COLUMNS`).
@@ -53,7 +56,7 @@ HISTORY_DTYPE = np.dtype([(name, dtype) for name, (dtype, _) in HISTORY_COLUMNS.
 
 
 class StopReason(enum.Enum):
-    """Why `calippso.jam` stopped. The first three end at a jamming point (``converged``)."""
+    """Why `calippso.jam` stopped. The first four end at a jamming point (``converged``)."""
 
     #: An LP met the tolerances: √Γ − 1 < tol_gamma and max |s| < tol_s over stable
     #: particles, with the step bound limiting nothing.
@@ -63,6 +66,10 @@ class StopReason(enum.Enum):
     CERTIFIED_NEWTON = "certified_newton"
     #: The input's own contact network was certified by the Newton stage, with no LP.
     NETWORK_FIRST = "network_first"
+    #: Contact pivots (`calippso.pivots`) took a network whose jamming point had
+    #: non-positive forces (the input's own, or an LP's) to a jamming point, which the
+    #: Newton certificate proved.
+    CERTIFIED_PIVOTS = "certified_pivots"
     #: ``max_iters`` LPs were solved without convergence.
     MAX_ITERS = "max_iters"
     #: The last `STALL_LPS` LPs gained nothing in Γ and their displacements did not shrink.
@@ -74,7 +81,7 @@ class StopReason(enum.Enum):
     def jammed(self) -> bool:
         """Whether the run ended at a jamming point (`JammingResult.converged`)."""
         return self in (StopReason.CONVERGED, StopReason.CERTIFIED_NEWTON,
-                        StopReason.NETWORK_FIRST)
+                        StopReason.NETWORK_FIRST, StopReason.CERTIFIED_PIVOTS)
 
 
 @dataclass(frozen=True)
@@ -94,6 +101,7 @@ class Record:
     force_balance: float
     min_gap: float
     phi: float
+    pivots: int = 0
 
     def as_dict(self) -> dict:
         """The record as a dict (what ``jam(..., callback=...)`` receives, with more keys)."""
@@ -147,6 +155,18 @@ class History:
             rows=n_contacts, step_bound=float("nan"), n_contacts=n_contacts,
             isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d),
             force_balance=force_balance, min_gap=min_gap, phi=phi))
+
+    def add_pivots(self, *, seconds: float, pivots: int, sqrt_gamma_minus_1: float,
+                   max_displacement: float, n_contacts: int, n_stable: int, min_gap: float,
+                   phi: float) -> Record:
+        """The record of a path of contact pivots that reached a jamming point (rows are the
+        contacts of its last network; growth and move from the path's start)."""
+        return self._add(Record(
+            stage="pivots", wall_time=self.elapsed(), solver_time=seconds,
+            sqrt_gamma_minus_1=sqrt_gamma_minus_1, max_displacement=max_displacement,
+            rows=n_contacts, step_bound=float("nan"), n_contacts=n_contacts,
+            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d),
+            force_balance=float("nan"), min_gap=min_gap, phi=phi, pivots=pivots))
 
     def add_guess(self, *, seconds: float, rows: int, n_contacts: int, n_stable: int,
                   min_gap: float, phi: float) -> Record:
@@ -251,6 +271,7 @@ _HEADS = {
     StopReason.NETWORK_FIRST: "Jammed: the input's own contact network certified, with no LP",
     StopReason.CONVERGED: "Jammed: converged after {lps} LPs",
     StopReason.CERTIFIED_NEWTON: "Jammed: converged after {lps} LPs",
+    StopReason.CERTIFIED_PIVOTS: "Jammed: reached by contact pivots after {lps} LPs",
     StopReason.STOPPED_BY_CALLBACK: "Stopped by the callback after {lps} LPs",
     StopReason.STALLED: ("Stalled after {lps} LPs: the last {stall} gained nothing in Gamma "
                          "and their displacements did not shrink"),

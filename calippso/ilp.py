@@ -39,8 +39,9 @@ from .network import (ContactNetwork, certify_network, network_balance, network_
                       polished_forces, remove_roundoff_overlaps, touching_network)
 from .network_first import SettledNetwork, settle_candidate
 from .network_guess import Candidate, candidate_networks, check_network_hint
-from .newton import Refinement
+from .newton import Refinement, refine_isostatic
 from .packing import Packing, wrap
+from .pivots import PivotPath, describe_path, pivot_to_jamming
 from .rattlers import remove_rattlers
 from .result import JammingResult
 from .settings import JamSettings
@@ -347,9 +348,9 @@ class _Jammer:
         """The network-first stage, then the loop: step bound, LP, update, convergence."""
         settings = self.settings
         if settings.network_first != "off" and not self.history.records:
-            network = self._network_first()
+            network, reason = self._network_first()
             if network is not None:
-                return self._finish(network, StopReason.NETWORK_FIRST)
+                return self._finish(network, reason)
             if settings.network_first == "require":
                 raise self._fail("network_first='require': no network guessed from the input "
                                  "was certified (" + self.history.notes[-1] + ")")
@@ -406,14 +407,15 @@ class _Jammer:
                                          taken.max_displacement, taken.lp.step_bound)
             if (settings.newton and record.isostaticity_gap == 0 and record.n_contacts
                     and taken.max_displacement < settings.newton_start):
-                refined = self._newton(network)
+                refined, pivoted = self._newton_or_pivots(network)
                 if refined is not None:
                     network = refined
                     if self._stop_requested(self.history.last):
                         reason = StopReason.STOPPED_BY_CALLBACK
                         break
                     if not settings.verify_newton:
-                        reason = StopReason.CERTIFIED_NEWTON
+                        reason = (StopReason.CERTIFIED_PIVOTS if pivoted
+                                  else StopReason.CERTIFIED_NEWTON)
                         break
                     verifying, self.step = True, CLEANUP_STEP
             self._save_state()
@@ -444,26 +446,30 @@ class _Jammer:
              "packing": self.packing()}))
 
     # ----------------------------------------------------------------- network first
-    def _network_first(self) -> ContactNetwork | None:
-        """The input's own contact network, certified by the Newton stage with no LP, or None.
+    def _network_first(self) -> tuple[ContactNetwork | None, StopReason]:
+        """The input's own contact network, certified by the Newton stage with no LP, or None;
+        and the stop reason (`StopReason.CERTIFIED_PIVOTS` when contact pivots repaired it).
 
         Candidates come from `calippso.network_guess` (the hint first, then the gap
         spectrum); at most `MAX_NETWORK_GUESSES` are settled by `calippso.network_first`
-        (restricted LP and Newton, a few rounds) and certified by the Newton stage. Each
-        adds a history record (stage "guess"), a certified one also the Newton record; the
-        notes say what happened.
+        (restricted LP, Newton and contact pivots, a few rounds) and certified by the Newton
+        stage. Each adds a history record (stage "guess"), a certified one also the pivot
+        and Newton records; the notes say what happened.
         """
         start = time.perf_counter()
         candidates = candidate_networks(self.search, self.d, self.hint)[:MAX_NETWORK_GUESSES]
         if not candidates:
             self.history.note("network first: the input holds no isostatic contact network "
                               "(not near a jamming point), so the LP loop ran")
-            return None
+            return None, StopReason.MAX_ITERS
         failures = []
         for candidate in candidates:
-            settled, failure = settle_candidate(self.search, candidate, self.d)
+            settled, failure = settle_candidate(self.search, candidate, self.d,
+                                                pivots=self.settings.pivots != "off")
             self._record_guess(candidate, settled, time.perf_counter() - start)
             if settled is not None:
+                if settled.pivots is not None:
+                    self._record_pivots(settled.pivots)
                 network = ContactNetwork(settled.i, settled.j, np.zeros(settled.i.shape[0]),
                                          settled.rattlers, float("nan"), "none", from_lp=False)
                 source = ("given as a hint" if candidate.source == "hint"
@@ -478,7 +484,8 @@ class _Jammer:
                     if self.callback is not None:
                         self.callback({**self.history.last.as_dict(), "iteration": 0,
                                        "packing": self.packing()})
-                    return refined
+                    return refined, (StopReason.NETWORK_FIRST if settled.pivots is None
+                                     else StopReason.CERTIFIED_PIVOTS)
                 failure = self.newton_failure
                 # refused here, from the input's positions: the LP loop may still reach this
                 # network, and its Newton stage must not skip it as tried before
@@ -487,7 +494,23 @@ class _Jammer:
             start = time.perf_counter()
         self.history.note(f"network first: no guessed network was certified "
                           f"({'; '.join(failures)}), so the LP loop ran")
-        return None
+        return None, StopReason.MAX_ITERS
+
+    def _record_pivots(self, path: PivotPath) -> None:
+        """History record (stage "pivots") and note of a path of contact pivots that reached
+        a jamming point (`calippso.pivots`); its Newton certificate is recorded next."""
+        refinement = path.refinement
+        moved = Packing(refinement.positions * self.scale, refinement.diameters * self.scale,
+                        self.box * self.scale)
+        record = self.history.add_pivots(
+            seconds=path.seconds, pivots=path.pivots,
+            sqrt_gamma_minus_1=refinement.sqrt_gamma_minus_1,
+            max_displacement=refinement.max_displacement, n_contacts=int(path.i.shape[0]),
+            n_stable=int((~path.rattlers).sum()), min_gap=float("nan"), phi=moved.phi)
+        self.history.note(describe_path(path))
+        if self.callback is not None:
+            self.callback({**record.as_dict(), "iteration": self.history.lps_solved,
+                           "packing": moved})
 
     def _record_guess(self, candidate: Candidate, settled: SettledNetwork | None,
                       seconds: float) -> None:
@@ -508,17 +531,45 @@ class _Jammer:
             self.callback({**record.as_dict(), "iteration": 0, "packing": self.packing()})
 
     # ----------------------------------------------------------------- Newton stage
+    def _newton_or_pivots(self, network: ContactNetwork) -> tuple[ContactNetwork | None, bool]:
+        """The Newton stage for an LP's isostatic network; with ``pivots="always"``, contact
+        pivots from its jamming point when only non-positive forces refuse it.
+
+        Returns
+        -------
+        (ContactNetwork or None, bool)
+            The certified network (None if refused) and whether pivots reached it.
+        """
+        if (self.settings.pivots != "always"
+                or network_key(network.i, network.j, self.n) in self.failed_networks):
+            return self._newton(network), False
+        refinement = refine_isostatic(self.positions, self.diameters, self.box, network.i,
+                                      network.j, ~network.rattlers)
+        certified = self._newton(network, refined=refinement)
+        if certified is not None or refinement is None or refinement.positive:
+            return certified, False
+        path, _ = pivot_to_jamming(self.positions, self.diameters, self.box, network.i,
+                                   network.j, network.rattlers, refined=refinement)
+        if path is None:
+            return None, False
+        self._record_pivots(path)
+        pivoted = ContactNetwork(path.i, path.j, np.zeros(path.i.shape[0]), path.rattlers,
+                                 float("nan"), network.solver, from_lp=False)
+        return self._newton(pivoted, refined=path.refinement, guessed=True), True
+
     def _newton(self, network: ContactNetwork, retry: bool = False, origin: str | None = None,
-                refined: Refinement | None = None) -> ContactNetwork | None:
+                refined: Refinement | None = None,
+                guessed: bool = False) -> ContactNetwork | None:
         """Move to the certified jamming point of an isostatic network
         (`calippso.network.certify_network`); None unless certified.
 
         A network that failed once is not tried again, unless `retry` (at the end of the
         loop, from the converged positions). `origin` describes a network that did not come
         from an LP (the network-first stage), for the notes; `refined` is its Newton solution
-        from the current positions when already computed (`calippso.network_first`). On
-        success a history record (stage "newton") and a note are added; on failure
-        `newton_failure` says why.
+        from the current positions when already computed (`calippso.network_first`). A
+        `guessed` network (or one with an `origin`) did not come from an LP's duals: another
+        touching pair refuses it (`calippso.network.certify_network`). On success a history
+        record (stage "newton") and a note are added; on failure `newton_failure` says why.
         """
         key = network_key(network.i, network.j, self.n)
         if key in self.failed_networks and not retry:
@@ -526,7 +577,8 @@ class _Jammer:
             return None
         began = time.perf_counter()
         certified, failure = certify_network(self.positions, self.diameters, self.box, network,
-                                             guessed=origin is not None, refined=refined)
+                                             guessed=guessed or origin is not None,
+                                             refined=refined)
         if certified is None:
             self.failed_networks.add(key)
             self.newton_failure = failure

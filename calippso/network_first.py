@@ -2,16 +2,21 @@
 chooses the contacts, Newton solves them, and a few rounds repair what is off.
 
 Round 0 takes a candidate from `calippso.network_guess` (pairs that may be hyperstatic by a
-few, or a few pairs off the jammed network). Each round
+few, or a few pairs off the jammed network). A candidate that is isostatic as it is (a hint
+that names exactly the contacts) goes straight to Newton and the pivots of step 4. Each round
 
 1. keeps the candidate pairs with a positive multiplier at the optimum of the CALiPPSO LP
    restricted to them (`calippso.restricted_lp`): an isostatic network;
 2. solves its contact equations by Newton (`calippso.newton`), from the input in the
    first round and from the previous round's jamming point after that;
 3. accepts the network when every force is positive and no other pair of stable particles
-   overlaps at that jamming point. Otherwise the next round reads the candidates at that
-   point (the pairs within `near_gap` of contact: the network, the pairs that overlap, those
-   about to close) and the restricted LP, linearised there, chooses again.
+   overlaps at that jamming point;
+4. when no other pair overlaps but some forces are not positive, and ``pivots`` is on,
+   follows the contact pivots of `calippso.pivots` from that point: each releases one such
+   contact and closes the next pair on the exact geometry, until every force is positive.
+Otherwise the next round reads the candidates at that point (the pairs within `near_gap` of
+contact: the network, the pairs that overlap, those about to close) and the restricted LP,
+linearised there, chooses again.
 
 When the candidate pairs cannot hold a positive self-stress (the restricted LP is
 unbounded), a pair that must close is missing: the round reads the pairs `WIDENING` times
@@ -33,6 +38,7 @@ from .neighbors import NeighborSearch, Pairs
 from .network_guess import CANDIDATE_GAP, Candidate
 from .newton import Refinement, refine_isostatic
 from .packing import minimum_image
+from .pivots import PivotPath, pivot_to_jamming
 from .restricted_lp import TOO_FEW, lp_network
 
 __all__ = ["MAX_ROUNDS", "SettledNetwork", "settle_candidate"]
@@ -70,6 +76,8 @@ class SettledNetwork:
     refinement : Refinement
         The Newton solution (positions, diameters, forces), its growth and largest
         displacement measured from the input.
+    pivots : PivotPath or None
+        The contact pivots that ended the last round, if any.
     """
 
     i: np.ndarray
@@ -80,10 +88,11 @@ class SettledNetwork:
     opened: int
     largest_gap: float
     refinement: Refinement
+    pivots: PivotPath | None = None
 
 
-def settle_candidate(search: NeighborSearch, candidate: Candidate,
-                     d: int) -> tuple[SettledNetwork | None, str]:
+def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
+                     pivots: bool = True) -> tuple[SettledNetwork | None, str]:
     """Rounds of restricted LP and Newton from a candidate (module doc).
 
     Parameters
@@ -94,6 +103,9 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate,
         Pairs to choose from, at the input.
     d : int
         Dimension.
+    pivots : bool
+        Follow contact pivots from a round's network whose jamming point has non-positive
+        forces and no overlap (`calippso.pivots`), before another round.
 
     Returns
     -------
@@ -104,7 +116,10 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate,
     current, base, near_gap = search, candidate.pairs, candidate.near_gap
     pairs, opened, failure = base, -1, ""
     for round_number in range(1, MAX_ROUNDS + 1):
-        closed, failure = lp_network(pairs, n, d)
+        # an isostatic candidate leaves the restricted LP no choice: pivots repair it instead
+        direct = pivots and round_number == 1 and _isostatic(pairs, n, d)
+        closed, failure = ((np.ones(len(pairs), dtype=bool), "") if direct
+                           else lp_network(pairs, n, d))
         if closed is None:
             if failure != TOO_FEW or near_gap >= CANDIDATE_GAP:
                 break
@@ -120,18 +135,36 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate,
             return None, "the restricted LP's network is not isostatic"
         refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
                                    ~rattlers)
+        if refined is None and direct:
+            continue   # the restricted LP chooses from the same pairs
         if refined is None:
             return None, "Newton did not converge or the Jacobian is singular"
         current = NeighborSearch(refined.positions, refined.diameters, search.box)
         near = _near_pairs(current, near_gap)
-        if refined.positive and not _overlaps_outside(near, i, j, rattlers).any():
+        overlap = _overlaps_outside(near, i, j, rattlers).any()
+        path = None
+        if pivots and not refined.positive and not overlap:
+            path, failure = pivot_to_jamming(current.positions, current.diameters,
+                                             search.box, i, j, rattlers, refined=refined)
+            if path is not None:
+                i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement
+        if refined.positive and not overlap:
             gaps = search.pairs_of(i, j).gaps
             return SettledNetwork(i, j, rattlers, candidate.source, round_number, opened,
                                   float(gaps.max(initial=0.0)),
-                                  _from_input(refined, search, rattlers)), ""
-        failure = "a non-positive force" if not refined.positive else "an overlap"
+                                  _from_input(refined, search, rattlers), path), ""
+        if not overlap and pivots:
+            failure = f"a non-positive force; pivots: {failure}"
+        else:
+            failure = "a non-positive force" if not refined.positive else "an overlap"
         base, pairs = current.pairs_of(i, j), near
     return None, f"not settled in {MAX_ROUNDS} rounds ({failure})"
+
+
+def _isostatic(pairs: Pairs, n: int, d: int) -> bool:
+    """Whether the pairs form an isostatic network as they are (no pair of a rattler)."""
+    rattlers, kept = remove_rattlers(n, d, pairs.i, pairs.j)
+    return bool(kept.all()) and isostaticity_gap(len(pairs), int(n - rattlers.sum()), d) == 0
 
 
 def _from_input(refined: Refinement, search: NeighborSearch,

@@ -11,6 +11,8 @@ __all__ = ["JamSettings"]
 
 #: Values accepted by ``jam(..., network_first=...)``.
 NETWORK_FIRST_MODES = ("auto", "off", "require")
+#: Values accepted by ``jam(..., pivots=...)``.
+PIVOT_MODES = ("network_first", "always", "off")
 
 #: Names accepted by ``jam(..., interior_point=...)`` (HiGHS backend).
 INTERIOR_POINT_SOLVERS = ("auto", "ipx", "hipo")
@@ -79,6 +81,11 @@ class JamSettings:
         the Newton stage and its certificate. "auto" (default): try, and run the LP loop
         when no guess is certified; "off": LPs only; "require": raise `JammingError` instead
         of running an LP (for large N, where an LP costs minutes).
+    pivots : str
+        Where contact pivots (`calippso.pivots`) repair an isostatic network whose jamming
+        point has non-positive forces and no overlap: "network_first" (default) in the
+        network-first stage, before another round of the restricted LP; "always" in the
+        LP loop's Newton stage too, instead of more LPs; "off": never.
     verify_newton : bool
         After a certified Newton stage, solve one more LP at the final configuration and
         continue the loop unless it meets the convergence criteria.
@@ -116,6 +123,7 @@ class JamSettings:
     newton: bool = True
     newton_start: float = 1e-4
     network_first: str = "auto"
+    pivots: str = "network_first"
     verify_newton: bool = False
     warm_start: bool = True
     interior_point: str = "auto"
@@ -130,6 +138,9 @@ class JamSettings:
         if self.network_first not in NETWORK_FIRST_MODES:
             raise ValueError(f"unknown network_first {self.network_first!r}: choose one of "
                              f"{', '.join(NETWORK_FIRST_MODES)}")
+        if self.pivots not in PIVOT_MODES:
+            raise ValueError(f"unknown pivots {self.pivots!r}: choose one of "
+                             f"{', '.join(PIVOT_MODES)}")
         if self.interior_point not in INTERIOR_POINT_SOLVERS:
             raise ValueError(f"unknown interior_point {self.interior_point!r}: choose one of "
                              f"{', '.join(INTERIOR_POINT_SOLVERS)}")

@@ -11,17 +11,18 @@ STEP = dict(solver_time=0.1, rows=10, step_bound=1e-3, n_contacts=7, n_stable=3,
             force_balance=0.0, min_gap=0.0, phi=0.5)
 
 
-def test_only_the_first_three_reasons_are_jammed():
+def test_only_the_first_four_reasons_are_jammed():
     jammed = {reason for reason in StopReason if reason.jammed}
     assert jammed == {StopReason.CONVERGED, StopReason.CERTIFIED_NEWTON,
-                      StopReason.NETWORK_FIRST}
+                      StopReason.NETWORK_FIRST, StopReason.CERTIFIED_PIVOTS}
 
 
 @pytest.mark.parametrize("reason", list(StopReason))
 def test_the_reason_is_read_back_from_its_status(reason):
     """Result files saved before `stop_reason` existed get it from their status sentence."""
     history = History(d=2, start=0.0)
-    if reason is StopReason.NETWORK_FIRST or reason is StopReason.CERTIFIED_NEWTON:
+    if reason in (StopReason.NETWORK_FIRST, StopReason.CERTIFIED_NEWTON,
+                  StopReason.CERTIFIED_PIVOTS):
         history.add_newton(seconds=0.1, sqrt_gamma_minus_1=1e-9, max_displacement=1e-8,
                            n_contacts=7, n_stable=4, force_balance=0.0, min_gap=0.0, phi=0.8)
     else:

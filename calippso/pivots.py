@@ -1,0 +1,426 @@
+"""Contact pivots: an active-set path from a network that is a few contacts off to the jammed one.
+
+The start is an isostatic contact network C at its Newton point (`calippso.newton`): the
+contact equations |r_c|² = Γ σ_c² hold on C, no other pair of stable particles overlaps,
+and the forces y (the self-stress of Jᵀ y = (0, …, 0, −1)) are known, but some are not
+positive. The CALiPPSO LP at that point would move on; here the same move is made on the
+exact geometry, one contact at a time, as the simplex method moves from vertex to vertex:
+
+1. **Certify.** Every force positive: the point is the jamming point (the caller still runs
+   the certificate of `calippso.network.certify_network`).
+2. **Release** a contact c with y_c ≤ 0 (the most negative one; smallest pair key while the
+   path is degenerate, Bland's rule, so that it cannot cycle). The network A = C ∖ c, less
+   the particles it leaves with only d contacts (rattlers, removed recursively with their
+   contacts), has exactly one floppy mode t: J_A t = 0, normalised to dΓ = 1. Along it c
+   opens, because y_cᵀ (J_C t)_c = −dΓ, and Γ grows.
+3. **Ratio test.** Every pair q of stable particles outside A closes along t at the
+   inflation step δ_q = Φ_q / (−∇Φ_q · t), where Φ_q = |r_q|²/σ_q² − Γ. The pair with the
+   smallest step closes first.
+4. **Pivot in.** C' = A ∪ {k} is isostatic again. Newton solves it from the predicted point
+   x + δ_k t, which makes the linear ratio test exact: the new vertex is accepted when no
+   other pair overlaps there and Γ did not decrease; otherwise the next pair of the ratio
+   test is tried. Its forces cost one transposed solve. Repeat from 1.
+
+Rattlers (those of the start, and those a release leaves) carry no force and do not move
+with the floppy modes; when a moved cage overlaps its rattler, the rattler is moved out of
+the way (`calippso.rattlers.separate_rattlers`). When the cage of a particle that the
+release left with d contacts closes on it, the pivot is made again with that particle kept
+in the network, held by its d contacts: the pair that closes on it makes it stable again.
+
+Γ never decreases, so the path can only revisit a network through degenerate pivots (where
+the closing pair already touches); Bland's rule and a record of the networks seen rule that
+out. Every linear solve is one sparse LU (`calippso.sparse_lu`) of the current Jacobian.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from .neighbors import NeighborSearch, Pairs
+from .network import NEWTON_OVERLAP_TOLERANCE
+from .newton import MIN_FORCE_RATIO, Refinement, network_jacobian, refine_isostatic
+from .packing import minimum_image
+from .rattlers import remove_rattlers, separate_rattlers
+from .sparse_lu import factorize
+
+__all__ = ["PivotPath", "Swap", "pivot_to_jamming", "describe_path", "MAX_PIVOTS", "NEAR_GAP",
+           "MAX_NEAR_GAP", "DEGENERATE_STEP", "CAGE_CLOSED"]
+
+#: Pivots taken at most before the path gives up (a network a few contacts off takes a few
+#: to a few tens).
+MAX_PIVOTS = 500
+#: Pairs of stable particles closer than this relative gap enter the ratio test; a step that
+#: could close a pair beyond it reads the pairs `NEAR_GAP_WIDENING` times farther.
+NEAR_GAP = 1e-3
+NEAR_GAP_WIDENING = 10.0
+#: Largest relative gap read by the ratio test: a floppy mode that closes no pair within it
+#: is not a small correction of the network.
+MAX_NEAR_GAP = 0.3
+#: An inflation step (relative, ΔΓ/Γ) below this is a degenerate pivot: the closing pair
+#: already touches, Γ does not grow.
+DEGENERATE_STEP = 1e-14
+#: Why a pivot failed when a rattler's cage closed on it (the pivot is then tried again with
+#: the particles that the release leaves with d contacts kept in the network).
+CAGE_CLOSED = "a rattler's cage closed along the floppy mode"
+#: Swaps listed by name in `describe_path`.
+LISTED_SWAPS = 5
+#: Pairs of the ratio test tried in turn, when Newton's vertex for the first one overlaps
+#: another pair (the curve is not the line of the prediction).
+RATIO_CANDIDATES = 4
+
+
+@dataclass(frozen=True)
+class Swap:
+    """One pivot: the contact released, the pair closed, and the inflation gained.
+
+    Attributes
+    ----------
+    released : tuple of int
+        The contact (i, j) whose force was not positive.
+    closed : tuple of int
+        The pair (i, j) that closed along the floppy mode.
+    growth : float
+        √(Γ'/Γ) − 1: the relative diameter growth of this pivot (0 when degenerate).
+    new_rattlers : int
+        Particles the release left with d contacts (they leave the network).
+    """
+
+    released: tuple[int, int]
+    closed: tuple[int, int]
+    growth: float
+    new_rattlers: int
+
+
+@dataclass(frozen=True, eq=False)
+class PivotPath:
+    """The end of a pivot path: an isostatic network with positive forces at its Newton point.
+
+    Attributes
+    ----------
+    i, j : ndarray, shape (M,), int64
+        Contacts between stable particles, i < j.
+    rattlers : ndarray, shape (N,), bool
+    refinement : Refinement
+        The jamming point (positions, diameters, forces), with its growth and largest
+        displacement measured from the start of the path.
+    swaps : tuple of Swap
+        The pivots in order.
+    factorizations : int
+        Sparse LU factorisations (directions and Newton solves).
+    seconds : float
+        Wall time of the path.
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    rattlers: np.ndarray
+    refinement: Refinement
+    swaps: tuple[Swap, ...]
+    factorizations: int
+    seconds: float
+
+    @property
+    def pivots(self) -> int:
+        """Pivots taken."""
+        return len(self.swaps)
+
+    @property
+    def degenerate(self) -> int:
+        """Pivots that gained no inflation."""
+        return sum(swap.growth <= DEGENERATE_STEP for swap in self.swaps)
+
+    @property
+    def largest_growth(self) -> float:
+        """The largest relative diameter growth of one pivot."""
+        return max((swap.growth for swap in self.swaps), default=0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class _Vertex:
+    """A point of the path: an isostatic network at its Newton point (diameters σ √Γ, so that
+    Φ_c = |r_c|²/σ_c² − 1 vanishes on the contacts)."""
+
+    i: np.ndarray
+    j: np.ndarray
+    stable: np.ndarray
+    refinement: Refinement
+
+    @property
+    def keys(self) -> np.ndarray:
+        return self.i * self.stable.shape[0] + self.j
+
+
+def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                     i: np.ndarray, j: np.ndarray, rattlers: np.ndarray,
+                     refined: Refinement | None = None,
+                     max_pivots: int = MAX_PIVOTS) -> tuple[PivotPath | None, str]:
+    """Pivot from an isostatic network to the jamming point (module doc).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres (mean diameters), at the Newton point of the network when `refined` is None.
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    i, j : ndarray, shape (M,), int
+        An isostatic network between stable particles, M = d (N_s − 1) + 1, i < j.
+    rattlers : ndarray, shape (N,), bool
+    refined : Refinement, optional
+        Newton's solution of the network from `positions`, when already computed.
+    max_pivots : int
+        Pivots taken at most.
+
+    Returns
+    -------
+    (PivotPath or None, str)
+        The path's end (positive forces, no overlap among stable particles; rattlers may
+        still overlap the moved cages, `calippso.rattlers.separate_rattlers` moves them), or
+        None and why the path cannot continue: the start overlaps another pair, the network
+        is singular, a floppy mode closes no pair, or `max_pivots` were taken.
+    """
+    began = time.perf_counter()
+    i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)
+    stable = ~np.asarray(rattlers, dtype=bool)
+    if refined is None:
+        refined = refine_isostatic(positions, diameters, box, i, j, stable)
+        if refined is None:
+            return None, "Newton did not converge or the Jacobian is singular"
+    start_positions, start_diameters = positions, diameters
+    vertex = _Vertex(i, j, stable, refined)
+    swaps: list[Swap] = []
+    seen = {_network_digest(vertex)}
+    factorizations = refined.factorizations
+    degenerate = False
+    while True:
+        search = NeighborSearch(vertex.refinement.positions, vertex.refinement.diameters, box)
+        overlapping = int(np.sum(_outside_pairs(search, vertex, NEAR_GAP).gaps
+                                 < -NEWTON_OVERLAP_TOLERANCE))
+        if overlapping:
+            return None, f"{overlapping} other pair(s) overlap"
+        if vertex.refinement.positive:
+            return PivotPath(vertex.i, vertex.j, ~vertex.stable,
+                             _from_start(vertex.refinement, start_positions, start_diameters,
+                                         box, vertex.stable),
+                             tuple(swaps), factorizations, time.perf_counter() - began), ""
+        if len(swaps) >= max_pivots:
+            return None, f"no jamming point within {max_pivots} pivots"
+        released = _leaving_contact(vertex, bland=degenerate)
+        step, failure = _pivot(search, vertex, released)
+        if step is None and failure == CAGE_CLOSED:
+            # the particles the release left with d contacts stay in the network
+            step, failure = _pivot(search, vertex, released, attached=True)
+        if step is None:
+            return None, failure
+        next_vertex, swap, solves = step
+        factorizations += solves
+        digest = _network_digest(next_vertex)
+        if digest in seen:
+            return None, "the path returned to a network it had left (cycling)"
+        seen.add(digest)
+        swaps.append(swap)
+        degenerate = swap.growth <= DEGENERATE_STEP
+        vertex = next_vertex
+
+
+def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
+           attached: bool = False) -> tuple[tuple[_Vertex, Swap, int] | None, str]:
+    """Release contact `released` of `vertex`, follow the floppy mode, close the first pair.
+
+    Parameters
+    ----------
+    attached : bool
+        Keep the particles that the release leaves with d contacts in the network, held by
+        them, while the mode is followed (each still adds as many unknowns as contacts, so
+        there is still one floppy mode): their cage may close on them, and the pair that
+        closes gives them d + 1 contacts again. Those still left with d contacts at the new
+        vertex (whose forces vanish there) become rattlers then.
+
+    Returns
+    -------
+    ((next vertex, swap, factorisations) or None, str)
+    """
+    n, d = vertex.refinement.positions.shape
+    keep = np.ones(vertex.i.shape[0], dtype=bool)
+    keep[released] = False
+    if attached:
+        i_a, j_a, stable = vertex.i[keep], vertex.j[keep], vertex.stable
+    else:
+        ratt, kept = remove_rattlers(n, d, vertex.i[keep], vertex.j[keep])
+        i_a, j_a, stable = vertex.i[keep][kept], vertex.j[keep][kept], ~ratt
+    direction = _floppy_mode(search, i_a, j_a, stable)
+    if direction is None:
+        return None, "the network without the released contact is singular"
+    c_i, c_j = int(vertex.i[released]), int(vertex.j[released])
+    if stable[c_i] and stable[c_j]:
+        c_pair = search.pairs_of(np.array([c_i]), np.array([c_j]))
+        if _closing_rates(c_pair, direction)[0] <= 0:
+            return None, "the released contact does not open along its floppy mode"
+    near_gap = NEAR_GAP
+    while True:
+        near = _outside_pairs(search, _Vertex(i_a, j_a, stable, vertex.refinement), near_gap)
+        steps = _closing_steps(near, direction)
+        order = np.lexsort((near.i * n + near.j, steps))   # smallest step, then Bland
+        order = order[np.isfinite(steps[order])]
+        if order.size and _reach(steps[order[0]], direction, search) < near_gap:
+            break
+        if near_gap >= MAX_NEAR_GAP:
+            return None, "the floppy mode closes no pair near contact"
+        near_gap = min(near_gap * NEAR_GAP_WIDENING, MAX_NEAR_GAP)
+    smallest = steps[order[0]]
+    ties = order[steps[order] <= smallest + DEGENERATE_STEP]
+    candidates = np.concatenate([ties[:1], order[~np.isin(order, ties[:1])]])
+    solves = 1
+    failure = "Newton found no vertex without overlap along the floppy mode"
+    positions = vertex.refinement.positions
+    diameters = vertex.refinement.diameters
+    for closing in candidates[:RATIO_CANDIDATES]:
+        predicted = positions + steps[closing] * direction
+        i_new = np.append(i_a, near.i[closing])
+        j_new = np.append(j_a, near.j[closing])
+        refined = refine_isostatic(predicted, diameters, search.box, i_new, j_new, stable)
+        if refined is None:
+            continue
+        solves += refined.factorizations
+        growth = float(np.mean(refined.diameters / diameters)) - 1.0
+        if growth < -DEGENERATE_STEP:
+            continue
+        now_rattlers, kept = remove_rattlers(n, d, i_new, j_new)
+        if attached and not kept.all():   # left with d contacts: zero forces, rattlers now
+            i_new, j_new = i_new[kept], j_new[kept]
+            refined = replace(refined, forces=refined.forces[kept])
+        now_stable = ~now_rattlers
+        moved = NeighborSearch(refined.positions, refined.diameters, search.box)
+        candidate = _Vertex(i_new, j_new, now_stable, refined)
+        if np.any(_outside_pairs(moved, candidate, NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
+            continue
+        refined = _rattlers_out_of_the_way(moved, refined, now_stable)
+        if refined is None:
+            failure = CAGE_CLOSED
+            continue
+        candidate = _Vertex(i_new, j_new, now_stable, refined)
+        swap = Swap((c_i, c_j), (int(near.i[closing]), int(near.j[closing])), max(growth, 0.0),
+                    int(np.count_nonzero(now_rattlers & vertex.stable)))
+        return (candidate, swap, solves), ""
+    return None, failure
+
+
+def _rattlers_out_of_the_way(search: NeighborSearch, refined: Refinement,
+                             stable: np.ndarray) -> Refinement | None:
+    """`refined` with the rattlers moved out of the moved cages
+    (`calippso.rattlers.separate_rattlers`) when a pair with a rattler overlaps; None when a
+    cage has closed on its rattler."""
+    close = search.pairs_near_contact()
+    with_rattler = ~stable[close.i] | ~stable[close.j]
+    if not np.any(with_rattler & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)):
+        return refined
+    separated = separate_rattlers(refined.positions, refined.diameters, search.box, ~stable)
+    return None if separated is None else replace(refined, positions=separated)
+
+
+def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray,
+                 stable: np.ndarray) -> np.ndarray | None:
+    """The floppy mode of a network with one contact fewer than unknowns, per particle.
+
+    Solves [J_A; e_Γᵀ] t = e_Γ: t is the null vector of J_A with dΓ = 1.
+
+    Returns
+    -------
+    ndarray, shape (N, d), or None
+        The displacement of every particle per unit of Γ (zero for the pinned particle and
+        the rattlers); None when the augmented matrix is singular (Γ cannot grow along the
+        floppy modes).
+    """
+    n, d = search.positions.shape
+    pairs = search.pairs_of(i, j)
+    jacobian = network_jacobian(pairs.vectors, pairs.sigma, i, j, stable)
+    n_unknowns = jacobian.shape[1]
+    if jacobian.shape[0] != n_unknowns - 1:
+        return None
+    gamma_row = sp.csr_matrix(([1.0], ([0], [n_unknowns - 1])), shape=(1, n_unknowns))
+    factors = factorize(sp.vstack([jacobian, gamma_row]).tocsc())
+    if factors is None:
+        return None
+    target = np.zeros(n_unknowns)
+    target[-1] = 1.0
+    solution = factors.solve(target)
+    if not np.all(np.isfinite(solution)):
+        return None
+    members = np.flatnonzero(stable)
+    mode = np.zeros((n, d))
+    mode[members[1:]] = solution[:-1].reshape(-1, d)
+    return mode
+
+
+def _closing_rates(pairs: Pairs, mode: np.ndarray) -> np.ndarray:
+    """dΦ_q/dΓ along a floppy mode, shape (P,): Φ_q = |r_q|²/σ_q² − Γ (negative: closing)."""
+    relative = mode[pairs.i] - mode[pairs.j]
+    return 2.0 * np.einsum("pd,pd->p", pairs.vectors, relative) / pairs.sigma**2 - 1.0
+
+
+def _closing_steps(pairs: Pairs, mode: np.ndarray) -> np.ndarray:
+    """The inflation step δ_q = Φ_q / (−dΦ_q/dΓ) at which each pair closes along the mode
+    (linearised), shape (P,); +inf for pairs that open. Pairs that already touch close at 0."""
+    rates = _closing_rates(pairs, mode)
+    phi = (pairs.distances / pairs.sigma) ** 2 - 1.0
+    steps = np.full(len(pairs), np.inf)
+    closing = rates < 0
+    steps[closing] = np.maximum(phi[closing], 0.0) / -rates[closing]
+    return steps
+
+
+def _reach(step: float, mode: np.ndarray, search: NeighborSearch) -> float:
+    """An upper bound on how much a relative gap can shrink over an inflation step along the
+    mode: the growth of the diameters plus twice the largest move, relative to the smallest
+    diameter."""
+    largest_move = float(np.sqrt(np.einsum("nd,nd->n", mode, mode)).max(initial=0.0))
+    return step * (0.5 + 2.0 * largest_move / float(search.diameters.min()))
+
+
+def _outside_pairs(search: NeighborSearch, vertex: _Vertex, near_gap: float) -> Pairs:
+    """The pairs of stable particles within `near_gap` of contact that are not contacts."""
+    n = vertex.stable.shape[0]
+    pairs = search.pairs_within(float(search.diameters.max()) * (1.0 + near_gap))
+    outside = (~np.isin(pairs.i * n + pairs.j, vertex.keys) & vertex.stable[pairs.i]
+               & vertex.stable[pairs.j] & (pairs.gaps < near_gap))
+    return pairs.subset(outside)
+
+
+def _leaving_contact(vertex: _Vertex, bland: bool) -> int:
+    """The contact to release: the most negative force, or on a degenerate stretch of the
+    path the non-positive force of smallest pair key (Bland's rule)."""
+    forces = vertex.refinement.forces
+    threshold = MIN_FORCE_RATIO * float(forces.max())
+    if bland:
+        candidates = np.flatnonzero(forces <= threshold)
+        return int(candidates[np.argmin(vertex.keys[candidates])])
+    return int(np.argmin(forces))
+
+
+def _network_digest(vertex: _Vertex) -> bytes:
+    return np.sort(vertex.keys).tobytes()
+
+
+def _from_start(refined: Refinement, positions: np.ndarray, diameters: np.ndarray,
+                box: np.ndarray, stable: np.ndarray) -> Refinement:
+    """`refined` with its growth and largest displacement measured from the path's start."""
+    moved = minimum_image(refined.positions[stable] - positions[stable], box)
+    return Refinement(
+        positions=refined.positions, diameters=refined.diameters, forces=refined.forces,
+        iterations=refined.iterations, factorizations=refined.factorizations,
+        sqrt_gamma_minus_1=float(np.mean(refined.diameters / diameters)) - 1.0,
+        max_displacement=float(np.abs(moved).max(initial=0.0)), residual=refined.residual)
+
+
+def describe_path(path: PivotPath) -> str:
+    """One clause on a path for the run's notes: pivots, time, contacts swapped, largest
+    growth of one pivot."""
+    listed = ", ".join(f"{swap.released}->{swap.closed}" for swap in path.swaps[:LISTED_SWAPS])
+    more = f" and {path.pivots - LISTED_SWAPS} more" if path.pivots > LISTED_SWAPS else ""
+    degenerate = f" ({path.degenerate} degenerate)" if path.degenerate else ""
+    return (f"{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s repaired the "
+            f"network's non-positive forces (released->closed: {listed}{more}; largest growth "
+            f"of one pivot sqrt(Gamma)-1 = {path.largest_growth:.1e})")

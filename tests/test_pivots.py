@@ -1,0 +1,244 @@
+"""Contact pivots (`calippso.pivots`): from an isostatic network a few contacts off to the
+jamming point, on the exact geometry.
+
+The inputs are jammed packings whose network has k contacts swapped for near pairs: the
+Newton point of the swapped network is a vertex below the jamming point (no overlap, some
+non-positive forces), and the path must climb back to the original packing, through `jam`
+as well as on its own. The path through the restricted LP must end at the same point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import generators
+from calippso import JammingError, Packing, StopReason, jam
+from calippso.neighbors import NeighborSearch
+from calippso.newton import refine_isostatic
+from calippso.pivots import DEGENERATE_STEP, pivot_to_jamming
+from calippso.rattlers import remove_rattlers
+
+import lattices
+from conftest import assert_jammed
+
+#: Near pairs (smallest gaps first) and contacts (smallest forces first) tried when swapping.
+NEAR_PAIRS_TRIED = 12
+#: Jamming points agree to this relative packing fraction.
+SAME_PHI = 1e-9
+#: Secant iterations that grow a particle until a pair touches.
+TOUCHING_ITERATIONS = 30
+
+
+@pytest.fixture(scope="module")
+def source():
+    """An LS packing at p = 1e7 (d = 3, N = 64) jammed by the LP path, in mean diameters."""
+    sizes = generators.diameters.monodisperse(64)
+    start = generators.lubachevsky_stillinger(sizes, d=3, target_pressure=1e7, seed=3).packing
+    result = jam(start, network_first="off")
+    assert_jammed(result)
+    return result
+
+
+def in_mean_diameters(packing: Packing) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    scale = packing.mean_diameter
+    return packing.positions / scale, packing.diameters / scale, packing.box / scale
+
+
+def swapped_networks(result, k: int, wanted: int, overlapping: bool = False) -> list[np.ndarray]:
+    """Networks of `result` with k contacts swapped for near pairs (deterministic order), each
+    isostatic with the same rattlers, whose Newton point from the jammed positions overlaps
+    no other pair (another pair, if `overlapping`) and has a non-positive force; `wanted` of
+    them, shape (M, 2)."""
+    positions, diameters, box = in_mean_diameters(result.packing)
+    n, d = result.packing.n, result.packing.d
+    contacts, rattlers = result.contacts, result.rattlers
+    search = NeighborSearch(positions, diameters, box)
+    close = search.pairs_within(1.2 * diameters.max())
+    outside = (~np.isin(close.i * n + close.j, contacts[:, 0] * n + contacts[:, 1])
+               & ~rattlers[close.i] & ~rattlers[close.j])
+    near = np.flatnonzero(outside)[np.argsort(close.gaps[outside])][:NEAR_PAIRS_TRIED]
+    weakest = np.argsort(result.forces)[:NEAR_PAIRS_TRIED]
+    rng = np.random.default_rng(k)
+    found = []
+    for _ in range(400):
+        removed = rng.choice(weakest, k, replace=False)
+        added = rng.choice(near, k, replace=False)
+        keep = np.ones(contacts.shape[0], dtype=bool)
+        keep[removed] = False
+        network = np.concatenate([contacts[keep],
+                                  np.column_stack([close.i[added], close.j[added]])])
+        now_rattlers, _ = remove_rattlers(n, d, network[:, 0], network[:, 1])
+        if (now_rattlers != rattlers).any():
+            continue
+        refined = refine_isostatic(positions, diameters, box, network[:, 0], network[:, 1],
+                                   ~rattlers)
+        if refined is None or refined.positive:
+            continue
+        moved = NeighborSearch(refined.positions, refined.diameters, box)
+        pairs = moved.pairs_within(1.01 * refined.diameters.max())
+        other = (~np.isin(pairs.i * n + pairs.j, network[:, 0] * n + network[:, 1])
+                 & ~rattlers[pairs.i] & ~rattlers[pairs.j])
+        if np.any(pairs.gaps[other] < -1e-12) != overlapping:
+            continue
+        found.append(network)
+        if len(found) == wanted:
+            break
+    assert len(found) == wanted, "the source packing offers too few swapped networks"
+    return found
+
+
+def same_network(a: np.ndarray, b: np.ndarray) -> bool:
+    return {tuple(pair) for pair in a.tolist()} == {tuple(pair) for pair in b.tolist()}
+
+
+def certified_again(path, box: np.ndarray) -> bool:
+    """Whether `jam` certifies the path's end on its own (network first, no LP, with the
+    path's network as the hint) at the same point: same contacts, φ within `SAME_PHI`."""
+    end = Packing(path.refinement.positions, path.refinement.diameters, box)
+    network = np.column_stack([path.i, path.j])
+    again = jam(end, network=network, network_first="require", pivots="off")
+    assert_jammed(again)
+    return (again.stop_reason is StopReason.NETWORK_FIRST
+            and same_network(again.contacts, network)
+            and abs(again.phi - end.phi) < SAME_PHI * end.phi)
+
+
+@pytest.mark.parametrize("k", [1, 2, 3])
+def test_the_path_climbs_to_a_certified_jamming_point(source, k):
+    """Γ never decreases, and the end is a jamming point that `jam` certifies by itself.
+
+    The end is the source packing, or another jamming point nearby: the swapped network's
+    vertex lies ~1e-3 mean diameters from the source, farther than the gaps of its near
+    pairs, and this small packing holds two jamming points 3e-8 apart in φ there; the LP
+    loop from the same vertex may end at either."""
+    positions, diameters, box = in_mean_diameters(source.packing)
+    for network in swapped_networks(source, k, wanted=2):
+        start = refine_isostatic(positions, diameters, box, network[:, 0], network[:, 1],
+                                 ~source.rattlers)
+        path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0],
+                                         network[:, 1], source.rattlers, refined=start)
+        assert path is not None, failure
+        assert path.pivots >= 1 and path.refinement.positive
+        assert all(swap.growth >= 0 for swap in path.swaps)   # Γ never decreases
+        assert path.refinement.diameters[0] >= start.diameters[0]
+        np.testing.assert_array_equal(path.rattlers, source.rattlers)
+        assert certified_again(path, box)
+
+
+def test_a_single_swap_returns_to_the_source(source):
+    positions, diameters, box = in_mean_diameters(source.packing)
+    network = swapped_networks(source, 1, wanted=1)[0]
+    path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
+                                     source.rattlers)
+    assert path is not None, failure
+    assert same_network(np.column_stack([path.i, path.j]), source.contacts)
+    assert np.allclose(path.refinement.diameters / diameters, 1.0, rtol=0, atol=SAME_PHI)
+
+
+@pytest.mark.parametrize("k", [1, 2])
+def test_jam_certifies_a_hint_a_few_contacts_off(source, k):
+    """The input is the Newton point of a swapped network and the hint is that network:
+    pivots repair it with no LP. For a single swap the LP loop from the same input (network
+    first off) reaches the same jamming point (the source packing, or the jamming point next
+    to it, `test_the_path_climbs_to_a_certified_jamming_point`); two swaps move the input so
+    far (~1e-3 mean diameters) that the two may end at different certified points."""
+    positions, diameters, box = in_mean_diameters(source.packing)
+    for network in swapped_networks(source, k, wanted=2):
+        vertex = refine_isostatic(positions, diameters, box, network[:, 0], network[:, 1],
+                                  ~source.rattlers)
+        start = Packing(vertex.positions, vertex.diameters, box)
+        pivoted = jam(start, network=network, network_first="require")
+        assert pivoted.stop_reason is StopReason.CERTIFIED_PIVOTS
+        assert pivoted.iterations == 0
+        assert_jammed(pivoted)
+        assert pivoted.force_balance < 1e-12
+        assert list(pivoted.history["stage"]) == ["guess", "pivots", "newton"]
+        assert pivoted.history["pivots"][1] >= 1
+        assert any("contact pivot" in note for note in pivoted.notes)
+
+        if k == 1:
+            lp_loop = jam(start, network_first="off")
+            np.testing.assert_array_equal(pivoted.contacts, lp_loop.contacts)
+            assert abs(pivoted.phi - lp_loop.phi) < SAME_PHI * lp_loop.phi
+
+
+def vertex_touching(positions, diameters, box, network, rattlers, pair):
+    """The Newton point of `network` with particle pair[0] grown until `pair` (outside the
+    network) touches there (secant iterations on its growth); its Refinement, or None if the
+    secant does not reach a gap of round-off."""
+    a, b = pair
+
+    def solved(growth: float):
+        grown = diameters.copy()
+        grown[a] *= 1.0 + growth
+        refined = refine_isostatic(positions, grown, box, network[:, 0], network[:, 1],
+                                   ~rattlers)
+        moved = NeighborSearch(refined.positions, refined.diameters, box)
+        return moved.pairs_of(np.array([a]), np.array([b])).gaps[0], refined
+
+    low, (low_gap, _) = 0.0, solved(0.0)
+    high = 1e-4
+    high_gap, refined = solved(high)
+    for _ in range(TOUCHING_ITERATIONS):
+        if abs(high_gap) < 1e-15 or high_gap == low_gap:
+            break
+        step = high_gap * (high - low) / (high_gap - low_gap)
+        low, low_gap, high = high, high_gap, high - step
+        high_gap, refined = solved(high)
+    return refined if abs(high_gap) < 1e-15 else None
+
+
+def test_a_degenerate_pivot_gains_nothing_and_the_path_goes_on(source):
+    """A vertex where a pair outside the network touches (a particle grown until it does):
+    that pair closes at a zero step, Γ does not grow, and the path still ends certified."""
+    positions, diameters, box = in_mean_diameters(source.packing)
+    n = source.packing.n
+    for network in swapped_networks(source, 1, wanted=3):
+        start = refine_isostatic(positions, diameters, box, network[:, 0], network[:, 1],
+                                 ~source.rattlers)
+        moved = NeighborSearch(start.positions, start.diameters, box)
+        near = moved.pairs_within(1.05 * start.diameters.max())
+        outside = np.flatnonzero(~np.isin(near.i * n + near.j,
+                                          network[:, 0] * n + network[:, 1]))
+        for q in outside[np.argsort(near.gaps[outside])][:6]:
+            pair = (int(near.i[q]), int(near.j[q]))
+            vertex = vertex_touching(positions, diameters, box, network, source.rattlers, pair)
+            if vertex is None:
+                continue
+            path, _ = pivot_to_jamming(vertex.positions, vertex.diameters, box, network[:, 0],
+                                       network[:, 1], source.rattlers, refined=vertex)
+            if path is None or not path.degenerate:
+                continue
+            first = path.swaps[0]
+            assert first.closed == pair and first.growth <= DEGENERATE_STEP
+            assert all(swap.growth >= 0 for swap in path.swaps)
+            assert path.refinement.positive
+            assert certified_again(path, box)
+            return
+    pytest.fail("no degenerate pivot was made")
+
+
+def test_a_network_that_overlaps_another_pair_is_refused(source):
+    """The path starts from a feasible vertex only: an overlap at the start is reported."""
+    positions, diameters, box = in_mean_diameters(source.packing)
+    network = swapped_networks(source, 1, wanted=1, overlapping=True)[0]
+    path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
+                                     source.rattlers)
+    assert path is None and "overlap" in failure
+
+
+@pytest.mark.parametrize("crystal", [lattices.fcc(2), lattices.triangular(4)],
+                         ids=["fcc", "triangular"])
+def test_a_crystal_falls_back_cleanly(crystal):
+    """A crystal at contact is degenerate: every pair outside an isostatic subset of its
+    touching pairs already touches. Pivots cannot certify it (a touching pair is left out),
+    and jam ends exactly as with pivots off, by the LP loop."""
+    with pytest.raises(JammingError):
+        jam(crystal, network_first="require", pivots="always")
+    result = jam(crystal, pivots="always")
+    off = jam(crystal, pivots="off")
+    assert result.converged and result.isostaticity_gap >= 0
+    assert result.iterations == off.iterations >= 1
+    np.testing.assert_array_equal(result.contacts, off.contacts)
+    assert result.phi == off.phi
