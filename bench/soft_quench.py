@@ -1,11 +1,16 @@
 """Benchmark of the soft-sphere quench (`generators.soft_quench`): density, pressure, cost.
 
 Run with ``nice -n 10 python bench/soft_quench.py`` (N = 1024, 4096, 16384 in d = 3, one
-seed each), or choose: ``--sizes 1024 4096 --seeds 1 2 3 --d 3 --json results.json``.
+seed each), or choose: ``--sizes 1024 4096 --seeds 1 2 3 --d 3 --json results.json``;
+``--minimiser fire lbfgs`` runs each case with each minimiser; ``--jam`` then hands the
+quench's network to ``calippso.jam(..., network_first="require")`` and reports its LPs,
+time and φ_J (a refused network is reported as such).
 Prints one row per run: the packing fraction after the shrink, the final soft pressure,
-minimisations, FIRE steps, wall and CPU seconds (all threads), and the isostaticity gap
-N_c − (d (N_s − 1) + 1) of the overlap network handed to `calippso.jam`. The JSON file holds
-the same rows. The first run includes Numba compilation unless the on-disk cache is warm.
+minimisations, steps (FIRE steps or L-BFGS force evaluations), the steps of the slowest
+minimisation over the median of the others, wall and CPU seconds (all threads), and the
+isostaticity gap N_c − (d (N_s − 1) + 1) of the overlap network handed to `calippso.jam`.
+The JSON file holds the same rows. The first run includes Numba compilation unless the
+on-disk cache is warm.
 """
 
 from __future__ import annotations
@@ -15,22 +20,66 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
+
 import generators
 from generators import diameters as dist
 
 
-def run(n: int, d: int, seed: int, target_pressure: float) -> dict:
+def slowest_over_median(steps: np.ndarray) -> float:
+    """Steps of the slowest minimisation ÷ the median of the others (per rung of the ladder;
+    the last rung's tightening rounds count with it)."""
+    if steps.size < 2:
+        return float("nan")
+    slowest = int(np.argmax(steps))
+    return float(steps[slowest] / np.median(np.delete(steps, slowest)))
+
+
+def jam_row(quench) -> dict:
+    """`calippso.jam` on the quench's packing with its network (network first required)."""
+    import calippso
+
+    clock = time.perf_counter()
+    try:
+        result = calippso.jam(quench.packing, network=quench.contacts,
+                              network_first="require")
+    except calippso.JammingError as error:
+        return {"jam_s": time.perf_counter() - clock, "jam_error": str(error)}
+    return {"jam_s": time.perf_counter() - clock, "lps": result.iterations,
+            "phi_j": result.phi, "isostatic": bool(result.isostatic)}
+
+
+def run(n: int, d: int, seed: int, target_pressure: float, minimiser: str,
+        jam: bool) -> dict:
     """One quench of N monodisperse spheres (bidisperse 1:1.4 in d = 2); its table row."""
     sizes = dist.bidisperse(n, 1.4, 0.5, seed) if d == 2 else dist.monodisperse(n)
     wall, cpu = time.perf_counter(), time.process_time()
-    result = generators.soft_quench(sizes, d, seed=seed, target_pressure=target_pressure)
+    result = generators.soft_quench(sizes, d, seed=seed, target_pressure=target_pressure,
+                                    minimiser=minimiser)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     extra = result.extra
-    return {"n": n, "d": d, "seed": seed, "phi": result.packing.phi,
-            "pressure": extra["pressure"], "minimisations": extra["minimisations"],
-            "fire_steps": extra["fire_steps"], "wall_s": time.perf_counter() - wall,
-            "cpu_s": time.process_time() - cpu,
-            "isostaticity_gap": extra["isostaticity_gap"], "stable": extra["stable"],
-            "max_overlap": extra["max_overlap"], "status": result.status}
+    per_rung = np.diff(np.concatenate([[0], result.history["time"]]))
+    row = {"n": n, "d": d, "seed": seed, "minimiser": minimiser, "phi": result.packing.phi,
+           "pressure": extra["pressure"], "minimisations": extra["minimisations"],
+           "steps": extra["fire_steps"], "steps_per_rung": per_rung.tolist(),
+           "slowest_over_median": slowest_over_median(per_rung),
+           "rebuilds": extra["rebuilds"], "wall_s": wall, "cpu_s": cpu,
+           "isostaticity_gap": extra["isostaticity_gap"], "stable": extra["stable"],
+           "max_overlap": extra["max_overlap"], "status": result.status}
+    return {**row, **(jam_row(result) if jam else {})}
+
+
+def format_row(row: dict) -> str:
+    line = (f"{row['n']:>6} {row['d']:>2} {row['seed']:>4} {row['minimiser']:>6} "
+            f"{row['phi']:>8.5f} {row['pressure']:>8.2e} {row['minimisations']:>4} "
+            f"{row['steps']:>9} {row['slowest_over_median']:>6.1f} {row['wall_s']:>7.1f} "
+            f"{row['cpu_s']:>7.1f} {row['isostaticity_gap']:>+7d}")
+    if "jam_error" in row:
+        return line + f"  jam refused after {row['jam_s']:.1f} s: {row['jam_error']}"
+    if "jam_s" in row:
+        line += (f" {row['jam_s']:>6.1f} {row['lps']:>4} {row['phi_j']:>8.5f} "
+                 f"{row['wall_s'] + row['jam_s']:>7.1f}")
+    return line
 
 
 def main() -> None:
@@ -40,21 +89,25 @@ def main() -> None:
     parser.add_argument("--d", type=int, default=3)
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
     parser.add_argument("--target-pressure", type=float, default=1e-7)
+    parser.add_argument("--minimiser", nargs="+", default=["fire"],
+                        choices=["fire", "lbfgs"], help="run each case with each of these")
+    parser.add_argument("--jam", action="store_true",
+                        help="jam each result with its network (network_first='require')")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = parser.parse_args()
 
-    print(f"{'N':>6} {'d':>2} {'seed':>4} {'phi':>8} {'p':>8} {'min':>4} {'FIRE steps':>10} "
-          f"{'wall s':>7} {'CPU s':>7} {'iso gap':>7}")
+    header = (f"{'N':>6} {'d':>2} {'seed':>4} {'method':>6} {'phi':>8} {'p':>8} {'min':>4} "
+              f"{'steps':>9} {'max/md':>6} {'wall s':>7} {'CPU s':>7} {'iso gap':>7}")
+    print(header + (f" {'jam s':>6} {'LPs':>4} {'phi_J':>8} {'both s':>7}" if args.jam
+                    else ""))
     rows = []
     for n in args.sizes:
         for seed in args.seeds:
-            row = run(n, args.d, seed, args.target_pressure)
-            rows.append(row)
-            print(f"{n:>6} {args.d:>2} {seed:>4} {row['phi']:>8.5f} {row['pressure']:>8.2e} "
-                  f"{row['minimisations']:>4} {row['fire_steps']:>10} {row['wall_s']:>7.1f} "
-                  f"{row['cpu_s']:>7.1f} {row['isostaticity_gap']:>+7d}", flush=True)
-            if args.json is not None:
-                args.json.write_text(json.dumps(rows, indent=1))
+            for minimiser in args.minimiser:
+                rows.append(run(n, args.d, seed, args.target_pressure, minimiser, args.jam))
+                print(format_row(rows[-1]), flush=True)
+                if args.json is not None:
+                    args.json.write_text(json.dumps(rows, indent=1))
 
 
 if __name__ == "__main__":

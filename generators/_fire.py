@@ -90,7 +90,7 @@ def cell_order(x: np.ndarray, box: np.ndarray, width: float) -> np.ndarray:
 #: on the number of threads or their scheduling (runs are reproducible bit for bit).
 BLOCK = 128
 #: Reductions of `harmonic_forces`, one column each in the per-block work array.
-N_SUMS = 7
+N_SUMS = 8
 #: Floor of r² in the force loop, so that two particles at the same place give no NaN.
 TINY = 1e-300
 
@@ -155,13 +155,14 @@ def _pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first: n
     """Pass 1 of `harmonic_forces` for particles lo ≤ i < hi, any d.
 
     Each pair k of row i: pair_force[k] = its force on i; f[i] = the sum over the row;
-    sums[4:7] = Σ f_ij, Σ f_ij r_ij and the number of overlapping pairs of these rows.
+    sums[4:8] = Σ f_ij, Σ f_ij r_ij, the number of overlapping pairs of these rows and their
+    energy Σ (1 − r_ij/σ_ij)² / 2.
     """
     d = x.shape[1]
     inv = 1.0 / box
     r_ij = np.empty(d)
     f_i = np.empty(d)
-    force_sum = virial = overlaps = 0.0
+    force_sum = virial = overlaps = energy = 0.0
     for i in range(lo, hi):
         f_i[:] = 0.0
         for k in range(first[i], first[i + 1]):
@@ -183,9 +184,10 @@ def _pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first: n
             force_sum += magnitude
             virial += magnitude * r
             overlaps += 1.0 if r < sigma else 0.0
+            energy += (magnitude * sigma) ** 2
         for mu in range(d):
             f[i, mu] = f_i[mu]
-    sums[4], sums[5], sums[6] = force_sum, virial, overlaps
+    sums[4], sums[5], sums[6], sums[7] = force_sum, virial, overlaps, 0.5 * energy
 
 
 @njit(cache=True)
@@ -195,7 +197,7 @@ def _pairs_3d(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first
     """`_pairs` written out for d = 3, so that the pair vectors stay in registers."""
     box0, box1, box2 = box[0], box[1], box[2]
     inv0, inv1, inv2 = 1.0 / box0, 1.0 / box1, 1.0 / box2
-    force_sum = virial = overlaps = 0.0
+    force_sum = virial = overlaps = energy = 0.0
     for i in range(lo, hi):
         x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
         f0 = f1 = f2 = 0.0
@@ -217,8 +219,9 @@ def _pairs_3d(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first
             force_sum += magnitude
             virial += magnitude * r
             overlaps += 1.0 if r < sigma else 0.0
+            energy += (magnitude * sigma) ** 2
         f[i, 0], f[i, 1], f[i, 2] = f0, f1, f2
-    sums[4], sums[5], sums[6] = force_sum, virial, overlaps
+    sums[4], sums[5], sums[6], sums[7] = force_sum, virial, overlaps, 0.5 * energy
 
 
 @njit(cache=True)
@@ -309,6 +312,8 @@ def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, b
         Σ over overlapping pairs of f_ij and of f_ij r_ij.
     overlaps : int
         Number of overlapping pairs.
+    energy : float
+        Harmonic energy E = Σ (1 − r_ij/σ_ij)² / 2 (ε = 1).
     """
     n, d = x.shape
     blocks = partial.shape[0]
@@ -328,7 +333,8 @@ def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, b
     for b in range(1, blocks):
         for q in range(N_SUMS):
             sums[q] = max(sums[q], partial[b, q]) if q == 3 else sums[q] + partial[b, q]
-    return sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], int(sums[6] + 0.5)
+    return (sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], int(sums[6] + 0.5),
+            sums[7])
 
 
 @njit(parallel=True, cache=True)
@@ -421,7 +427,7 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
     dt, alpha, positive, age = state[0], state[1], state[2], state[3]
     log_scale, v_scale = state[4], state[5]
     scale = np.exp(log_scale)
-    power, force2, speed2, largest2, force_sum, virial, overlaps = harmonic_forces(
+    power, force2, speed2, largest2, force_sum, virial, overlaps, _ = harmonic_forces(
         x, v, s, scale, box, first, second, incoming_start, incoming, pair_force, f, partial)
     steps = 0
     drift2 = 0.0
@@ -464,7 +470,7 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
         if 2.0 * np.sqrt(drift2) + largest * max(scale - scale_built, 0.0) > skin:
             code = REBUILD
             break
-        power, force2, speed2, largest2, force_sum, virial, overlaps = harmonic_forces(
+        power, force2, speed2, largest2, force_sum, virial, overlaps, _ = harmonic_forces(
             x, v, s, scale, box, first, second, incoming_start, incoming, pair_force, f,
             partial)
     state[0], state[1], state[2], state[3] = dt, alpha, positive, age

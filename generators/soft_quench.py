@@ -18,7 +18,7 @@ import numpy as np
 from calippso.packing import Packing, ball_volume
 from calippso.rattlers import remove_rattlers
 
-from . import _fire
+from . import _fire, _lbfgs
 from ._checks import (check_diameters, check_dimension, check_phi, check_positive,
                       phi_estimate, remove_roundoff_overlap)
 from .checkpoint import Checkpoint, Resumable, digest
@@ -65,9 +65,12 @@ PHI_START_FACTOR = 1.12
 #: ~1e-3 σ per minimisation, and a thin skin lists fewer pairs.
 SKIN_DRIFT_FACTOR = 4.0
 SKIN_MIN = 0.02
-#: FIRE steps between two pauses of a minimisation, where a checkpoint may be written (a
-#: pause changes no result: `_fire.fire_run` starts from the positions and velocities alone).
+#: FIRE steps (L-BFGS force evaluations) between two pauses of a minimisation, where a
+#: checkpoint may be written (a pause changes no result: `_fire.fire_run` and
+#: `_lbfgs.lbfgs_run` continue from the state they return).
 PAUSE_STEPS = 1000
+#: The minimisers `soft_quench` offers.
+MINIMISERS = ("fire", "lbfgs")
 
 
 class _SoftSpheres(Resumable):
@@ -82,6 +85,8 @@ class _SoftSpheres(Resumable):
     box : ndarray, shape (d,)
     skin : float
         Largest Verlet skin, in mean diameters (the skin adapts below it).
+    minimiser : str
+        "fire" (`_fire.fire_run`) or "lbfgs" (`_lbfgs.lbfgs_run`).
 
     Attributes
     ----------
@@ -94,11 +99,11 @@ class _SoftSpheres(Resumable):
     scale : float
         Diameter scale a.
     steps : int
-        FIRE steps so far.
+        FIRE steps (L-BFGS force evaluations) so far.
     """
 
     def __init__(self, positions: np.ndarray, nominal: np.ndarray, box: np.ndarray,
-                 skin: float) -> None:
+                 skin: float, minimiser: str = "fire") -> None:
         n, d = positions.shape
         self.box = box
         self.max_skin = skin
@@ -117,9 +122,14 @@ class _SoftSpheres(Resumable):
         self.x_built = self.x.copy()
         self.scale_built = self.scale
         self.lists: tuple[np.ndarray, ...] = ()
-        # The minimisation in progress: FIRE's state (`_fire.fire_run`; empty between two
-        # minimisations), its steps so far, the rebuild count at its start and the last drift.
-        self.fire = np.empty(0)
+        self.minimiser = minimiser
+        # The minimisation in progress: the minimiser's state (`_fire.fire_run`,
+        # `_lbfgs.lbfgs_run`; empty between two minimisations) and L-BFGS's history (s, y
+        # pairs: `memory_x` shape (2, HISTORY, N d), `memory_u` shape (4, HISTORY)), its
+        # steps so far, the rebuild count at its start and the last drift.
+        self.method = np.empty(0)
+        self.memory_x = np.empty((2, 0, n * d))
+        self.memory_u = np.empty((4, 0))
         self.taken = 0
         self.built = 0
         self.drift = 0.0
@@ -127,7 +137,8 @@ class _SoftSpheres(Resumable):
     #: Attributes (and their types) that make up the whole state at a pause (`minimise`) or
     #: between two minimisations.
     STATE = {"x": np.float64, "v": np.float64, "s": np.float64, "ids": np.int64,
-             "x_built": np.float64, "fire": np.float64, "scale": float, "skin": float,
+             "x_built": np.float64, "method": np.float64, "memory_x": np.float64,
+             "memory_u": np.float64, "scale": float, "skin": float,
              "scale_built": float, "drift": float, "steps": int, "rebuilds": int,
              "taken": int, "built": int}
 
@@ -135,7 +146,7 @@ class _SoftSpheres(Resumable):
         """`Resumable.restore`, then the lists of a minimisation in progress."""
         super().restore(saved)
         self.f = np.zeros_like(self.x)
-        if self.fire.size:
+        if self.method.size:
             self._build_lists()
 
     @property
@@ -149,6 +160,10 @@ class _SoftSpheres(Resumable):
         order = _fire.cell_order(self.x, self.box, self.scale * self.s.max() + self.skin)
         self.x, self.v, self.s, self.ids = (self.x[order], self.v[order], self.s[order],
                                             self.ids[order])
+        if self.memory_x.size:
+            n, d = self.x.shape
+            self.memory_x = np.ascontiguousarray(
+                self.memory_x.reshape(2, -1, n, d)[:, :, order].reshape(2, -1, n * d))
         self.x_built = self.x.copy()
         self.scale_built = self.scale
         self._build_lists()
@@ -161,7 +176,7 @@ class _SoftSpheres(Resumable):
 
     def minimise(self, pressure: float, tolerance: float, max_steps: int,
                  pause: Callable[[bool], None] | None = None) -> tuple[int, float]:
-        """FIRE from rest at fixed pressure (enthalpy) until converged or out of steps.
+        """Minimise the enthalpy at fixed pressure, from rest, until converged or out of steps.
 
         A minimisation restored from a checkpoint in progress (`restore`) continues where it
         paused.
@@ -175,7 +190,7 @@ class _SoftSpheres(Resumable):
             (or the round-off floor of the forces, `ROUNDOFF_FORCE` × eps × L) and
             |p − p*| ≤ tolerance × p*.
         max_steps : int
-            Steps allowed to this minimisation.
+            Steps (FIRE steps or L-BFGS force evaluations) allowed to this minimisation.
         pause : callable, optional
             Called as ``pause(stopped)`` after every list rebuild and every `PAUSE_STEPS`
             steps, where the state is complete (`state`); `stopped` is True when the steps
@@ -188,22 +203,25 @@ class _SoftSpheres(Resumable):
         pressure : float
             Pressure at the end.
         """
-        if not self.fire.size:
+        if not self.method.size:
             self.v[:] = 0.0
-            self.fire = np.array([self.dt0, _fire.ALPHA_START, 0.0, 0.0, np.log(self.scale),
-                                  0.0])
+            if self.minimiser == "lbfgs":
+                self.method = _lbfgs.new_state(np.log(self.scale))
+                self.memory_x = np.zeros((2, _lbfgs.HISTORY, self.x.size))
+                self.memory_u = np.zeros((4, _lbfgs.HISTORY))
+            else:
+                self.method = np.array([self.dt0, _fire.ALPHA_START, 0.0, 0.0,
+                                        np.log(self.scale), 0.0])
             self.rebuild()
             self.built, self.taken, self.drift = self.rebuilds, 0, 0.0
         while True:
-            code, steps, reached, drift = _fire.fire_run(
-                self.x, self.v, self.f, self.s, self.box, *self.lists, self.x_built,
-                self.skin, self.scale_built, self.fire, DT_MAX_FACTOR * self.dt0,
-                _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure,
-                min(max_steps - self.taken, PAUSE_STEPS))
+            code, steps, reached, drift = self._run(pressure, tolerance,
+                                                    min(max_steps - self.taken, PAUSE_STEPS))
             self.taken += steps
             if steps:
                 self.drift = drift
-            self.scale = float(np.exp(self.fire[4]))
+            self.scale = float(np.exp(self.method[4 if self.minimiser == "fire"
+                                                  else _lbfgs.LOG_SCALE]))
             if code == _fire.CONVERGED:
                 break
             stopped = code == _fire.OUT_OF_STEPS and self.taken >= max_steps
@@ -218,8 +236,24 @@ class _SoftSpheres(Resumable):
             self.skin = min(self.max_skin, max(SKIN_MIN, SKIN_DRIFT_FACTOR * self.drift))
         else:
             self.skin = min(self.max_skin, 2.0 * self.skin)
-        self.fire = np.empty(0)
+        self.method = np.empty(0)
+        self.memory_x = np.empty((2, 0, self.x.size))
+        self.memory_u = np.empty((4, 0))
         return code, reached
+
+    def _run(self, pressure: float, tolerance: float,
+             max_steps: int) -> tuple[int, int, float, float]:
+        """One call of the minimiser's kernel (`_fire.fire_run` or `_lbfgs.lbfgs_run`)."""
+        if self.minimiser == "lbfgs":
+            return _lbfgs.lbfgs_run(
+                self.x, self.f, self.s, self.box, *self.lists, self.x_built, self.skin,
+                self.scale_built, self.method, self.memory_x, self.memory_u, tolerance,
+                self.force_floor, pressure, max_steps)
+        return _fire.fire_run(
+            self.x, self.v, self.f, self.s, self.box, *self.lists, self.x_built,
+            self.skin, self.scale_built, self.method, DT_MAX_FACTOR * self.dt0,
+            _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure,
+            max_steps)
 
     def pairs_below(self, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs with relative gap |r|/σ − 1 below `gap`, in original particle indices,
@@ -280,14 +314,14 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
                 target_pressure: float = 1e-7, force_tolerance: float = 1e-6,
                 progress: bool = False, skin: float = 0.2, max_steps: int = 50_000_000,
                 checkpoint: str | os.PathLike | None = None,
-                checkpoint_every: float = 60.0) -> GenerationResult:
+                checkpoint_every: float = 60.0, minimiser: str = "fire") -> GenerationResult:
     """Quench harmonic soft spheres to a vanishing pressure, then shrink them to hard contact.
 
     The route of O'Hern, Silbert, Liu & Nagel (2003) into a hard-sphere jamming basin, with
     the pressure controlled directly: uniform random centres in a cubic box at `phi_start`,
     with the harmonic repulsion V = ε/2 (1 − r/σ)² for r < σ, are brought to enthalpy minima
-    H = E + p* V by FIRE 2.0 (Δt_max = 5 Δt0), the diameter scale being one more degree of
-    freedom. The pressures p* go down from 1e-2 in equal factors of at most 10 to half of
+    H = E + p* V by FIRE 2.0 (Δt_max = 5 Δt0) or L-BFGS (`minimiser`), the diameter scale
+    being one more degree of freedom. The pressures p* go down from 1e-2 in equal factors of at most 10 to half of
     `target_pressure`. At fixed pressure a minimum always exists, so no step can unjam (at
     fixed density, decompression steps near p → 0 unjammed and slid towards zero energy for
     up to 4e5 FIRE steps each). Minima are converged to forces of 1e-4 of the mean pair
@@ -324,16 +358,20 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         Largest Verlet skin in mean diameters; once the particles settle, the skin follows
         their drift per minimisation (down to 0.02).
     max_steps : int
-        Limit on the FIRE steps of the whole run. A run stopped by it and called again with
+        Limit on the steps of the whole run (FIRE steps, or L-BFGS force evaluations; an
+        L-BFGS line search in progress finishes). A run stopped by it and called again with
         a larger limit and the same checkpoint continues where it stopped.
     checkpoint : str or PathLike, optional
         File (``.npz``) holding the state of the run (`generators.checkpoint`). It is written
         atomically at most every `checkpoint_every` seconds (at a list rebuild or every 1000
-        FIRE steps), when the steps run out, and at the end. A call with the same inputs
+        steps), when the steps run out, and at the end. A call with the same inputs
         resumes from it and returns the result of the uninterrupted run, bit for bit; a
         finished run returns from it at once. `max_steps` may differ between the calls.
     checkpoint_every : float
         Smallest wall time in seconds between two checkpoint writes (0: at every pause).
+    minimiser : {"fire", "lbfgs"}
+        The minimiser of the enthalpy: FIRE 2.0, or L-BFGS with a Wolfe line search
+        (`steps` then counts force evaluations). Both stop on the same convergence test.
 
     Returns
     -------
@@ -342,8 +380,9 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         given ones. `contacts`: the overlap network before the shrink (pairs overlapping by
         more than 1e-12 σ) without rattlers, removed recursively (pairs i < j, int64,
         shape (M, 2), sorted lexicographically). `reduced_pressure` is nan (soft spheres
-        have no hard-sphere pressure); `steps` counts FIRE steps; `history` holds one
-        record per minimisation (FIRE steps so far, φ before the shrink, pressure, nan).
+        have no hard-sphere pressure); `steps` counts FIRE steps (L-BFGS force
+        evaluations); `history` holds one record per rung of the ladder (steps so far, φ
+        before the shrink, pressure, nan).
         `extra`: ``pressure`` (final soft pressure, ε / (mean diameter)^d),
         ``minimisations``, ``fire_steps``, ``rebuilds`` (list rebuilds), ``phi_soft`` (φ
         before the shrink), ``shrink_factor`` (diameters were multiplied by it),
@@ -376,10 +415,13 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     skin = check_positive(skin, "skin")
     if int(max_steps) != max_steps or max_steps < 1:
         raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
+    if minimiser not in MINIMISERS:
+        raise ValueError(f"minimiser must be one of {', '.join(MINIMISERS)}, got {minimiser!r}")
     saver = Checkpoint(checkpoint, "soft_quench",
                        {"diameters": digest(diameters), "d": d, "seed": int(seed),
                         "phi_start": phi_start, "target_pressure": target_pressure,
-                        "force_tolerance": force_tolerance, "skin": skin},
+                        "force_tolerance": force_tolerance, "skin": skin,
+                        "minimiser": minimiser},
                        every=check_positive(checkpoint_every, "checkpoint_every",
                                             allow_zero=True))
     mean = float(diameters.mean())
@@ -387,7 +429,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     box = start.box / mean
     nominal = diameters / mean
     _check_box(box, nominal, skin, phi_start, PHI_START_FACTOR * typical)
-    system = _SoftSpheres(start.positions / mean, nominal, box, skin)
+    system = _SoftSpheres(start.positions / mean, nominal, box, skin, minimiser)
     run = _Run(_pressure_ladder(TARGET_AIM * target_pressure), force_tolerance, max_steps)
     earlier_wall = 0.0
     saved = saver.load()
@@ -426,7 +468,7 @@ class _Run:
     force_tolerance : float
         Tightest convergence of the last minimisation (see `soft_quench`).
     max_steps : int
-        Limit on the FIRE steps of the whole run.
+        Limit on the steps of the whole run.
     rung : int
         Index in `ladder` of the minimisation in progress (len(ladder) once all are done).
     round : int
@@ -435,7 +477,7 @@ class _Run:
     previous : ndarray of int64, shape (M, 2)
         The stable overlap network after the last round (tightening only).
     rows : list of tuple
-        One history row per finished rung: (FIRE steps so far, φ, pressure, nan).
+        One history row per finished rung: (steps so far, φ, pressure, nan).
     pressure : float
         Pressure at the end of the last minimisation.
     """

@@ -289,28 +289,39 @@ def assert_same_quench(a, b) -> None:
 
 @pytest.fixture(scope="module")
 def quench_references():
-    return {name: generators.soft_quench(sizes, d, seed=7)
-            for name, (sizes, d) in QUENCH_CASES.items()}
+    return {(name, minimiser): generators.soft_quench(sizes, d, seed=7, minimiser=minimiser)
+            for name, (sizes, d) in QUENCH_CASES.items() for minimiser in ("fire", "lbfgs")}
 
 
+#: The kernel of each minimiser, and the position of the force tolerance in its arguments.
+QUENCH_KERNELS = {"fire": ("_fire", "fire_run", 15), "lbfgs": ("_lbfgs", "lbfgs_run", 14)}
+
+
+@pytest.mark.parametrize("minimiser", ["fire", "lbfgs"])
 @pytest.mark.parametrize("case, crash", [
     ("d3", ("steps", 0.3)), ("d3", ("steps", 0.7)), ("d3", ("tightening", 3)),
     ("d2_bidisperse", ("steps", 0.3)), ("d2_bidisperse", ("steps", 0.8))])
 def test_quench_killed_mid_minimisation_resumes_bit_for_bit(tmp_path, monkeypatch, case,
-                                                            crash, quench_references):
-    """Killed after a fraction of its FIRE steps (an early or a late rung), or at the third
-    stretch of FIRE steps of the tightening rounds, the quench resumes from its checkpoint
-    and ends where the uninterrupted run ends."""
-    from generators import _fire
+                                                            crash, minimiser,
+                                                            quench_references):
+    """Killed after a fraction of its steps (an early or a late rung), or at the third
+    stretch of steps of the tightening rounds, the quench resumes from its checkpoint
+    and ends where the uninterrupted run ends (FIRE, and L-BFGS with its history). Both
+    runs pause every 100 steps instead of 1000: pauses change no result either."""
+    import importlib
+
     from generators.soft_quench import INTERMEDIATE_TOLERANCE
 
+    monkeypatch.setattr(importlib.import_module("generators.soft_quench"), "PAUSE_STEPS", 100)
+    module_name, kernel, tolerance_at = QUENCH_KERNELS[minimiser]
+    module = importlib.import_module(f"generators.{module_name}")
     sizes, d = QUENCH_CASES[case]
-    reference = quench_references[case]
-    real_run, taken, tightening = _fire.fire_run, [], []
+    reference = quench_references[case, minimiser]
+    real_run, taken, tightening = getattr(module, kernel), [], []
     kind, where = crash
 
     def crashing_run(*args):
-        tolerance = args[15]
+        tolerance = args[tolerance_at]
         tightening.extend([1] if tolerance < INTERMEDIATE_TOLERANCE else [])
         if (sum(taken) >= where * reference.steps if kind == "steps"
                 else len(tightening) == where):
@@ -319,20 +330,24 @@ def test_quench_killed_mid_minimisation_resumes_bit_for_bit(tmp_path, monkeypatc
         taken.append(result[1])
         return result
 
-    monkeypatch.setattr(_fire, "fire_run", crashing_run)
+    monkeypatch.setattr(module, kernel, crashing_run)
     path = tmp_path / "quench.npz"
     with pytest.raises(_Crash):
-        generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=0)
+        generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=0,
+                               minimiser=minimiser)
     with np.load(path) as saved:
-        assert saved["state_fire"].size        # saved in the middle of a minimisation
+        assert saved["state_method"].size        # saved in the middle of a minimisation
         assert (int(saved["run_round"]) > 0) == (kind == "tightening")
-    monkeypatch.setattr(_fire, "fire_run", real_run)
-    resumed = generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=0)
+        if minimiser == "lbfgs":                 # with the history of the minimisation
+            assert np.any(saved["state_memory_x"])
+    monkeypatch.setattr(module, kernel, real_run)
+    resumed = generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=0,
+                                     minimiser=minimiser)
     assert resumed.extra["resumed"]
     assert_same_quench(resumed, reference)
     # a finished run is read back, not run again
-    monkeypatch.setattr(_fire, "fire_run", None)
-    again = generators.soft_quench(sizes, d, seed=7, checkpoint=path)
+    monkeypatch.setattr(module, kernel, None)
+    again = generators.soft_quench(sizes, d, seed=7, checkpoint=path, minimiser=minimiser)
     assert_same_quench(again, reference)
 
 
@@ -340,7 +355,7 @@ def test_quench_stopped_by_max_steps_continues_with_a_larger_limit(tmp_path, que
     """A quench stopped by `max_steps` says so, and called again with more steps it becomes
     the run made with them from the start."""
     sizes, d = QUENCH_CASES["d3"]
-    reference = quench_references["d3"]
+    reference = quench_references["d3", "fire"]
     path = tmp_path / "staged.npz"
     stopped = generators.soft_quench(sizes, d, seed=7, max_steps=reference.steps // 2,
                                      checkpoint=path)
@@ -362,5 +377,7 @@ def test_quench_checkpoint_of_another_run_is_refused(tmp_path):
         generators.soft_quench(sizes, d, seed=8, checkpoint=path)
     with pytest.raises(ValueError, match=r"differs in target_pressure"):
         generators.soft_quench(sizes, d, seed=7, target_pressure=1e-6, checkpoint=path)
+    with pytest.raises(ValueError, match=r"differs in minimiser"):
+        generators.soft_quench(sizes, d, seed=7, minimiser="lbfgs", checkpoint=path)
     with pytest.raises(ValueError, match="checkpoint_every"):
         generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=-1)

@@ -24,21 +24,30 @@ from generators import diameters as dist
 TARGET = 1e-7
 
 #: (name, diameters, d, seed, φ band). Bands: d = 3 monodisperse 0.63–0.65 and d = 2
-#: bidisperse 1:1.4 0.83–0.85 (O'Hern et al. at small N); d = 4 0.44–0.47 (LS to p = 1e5:
-#: 0.456 at N = 256; this quench 0.455 at N = 1000 and 0.446 at N = 128).
+#: bidisperse 1:1.4 0.825–0.85 (O'Hern et al. at small N; this quench 0.829–0.845 over ten
+#: seeds at N = 128, either minimiser); d = 4 0.44–0.47 (LS to p = 1e5: 0.456 at N = 256;
+#: this quench 0.455 at N = 1000 and 0.446 at N = 128).
 CASES = {
-    "d2_bidisperse": (dist.bidisperse(128, 1.4, 0.5, seed=3), 2, 3, (0.83, 0.85)),
+    "d2_bidisperse": (dist.bidisperse(128, 1.4, 0.5, seed=3), 2, 3, (0.825, 0.85)),
     "d3_mono": (dist.monodisperse(128), 3, 1, (0.63, 0.65)),
     "d3_lognormal": (dist.lognormal(128, 0.2, seed=2), 3, 2, (0.63, 0.67)),
     "d4_mono": (dist.monodisperse(128), 4, 1, (0.44, 0.47)),
 }
 
 
+#: The minimisers of the enthalpy; every case runs with each.
+MINIMISERS = ("fire", "lbfgs")
+RUNS = [(name, minimiser) for name in CASES for minimiser in MINIMISERS]
+
+
 @pytest.fixture(scope="module")
 def quenches() -> dict:
-    """Each case of `CASES` quenched once: name → GenerationResult."""
-    return {name: generators.soft_quench(sizes, d, seed=seed, target_pressure=TARGET)
-            for name, (sizes, d, seed, _) in CASES.items()}
+    """Each case of `CASES` quenched once with each minimiser: (name, minimiser) →
+    GenerationResult."""
+    return {(name, minimiser): generators.soft_quench(sizes, d, seed=seed,
+                                                      target_pressure=TARGET,
+                                                      minimiser=minimiser)
+            for name, (sizes, d, seed, _) in CASES.items() for minimiser in MINIMISERS}
 
 
 def contact_gaps(packing, contacts: np.ndarray) -> np.ndarray:
@@ -49,9 +58,9 @@ def contact_gaps(packing, contacts: np.ndarray) -> np.ndarray:
     return np.linalg.norm(r, axis=1) / sigma - 1.0
 
 
-@pytest.mark.parametrize("name", CASES)
-def test_no_overlap_and_tiny_contact_gaps(quenches, name):
-    result = quenches[name]
+@pytest.mark.parametrize("name, minimiser", RUNS)
+def test_no_overlap_and_tiny_contact_gaps(quenches, name, minimiser):
+    result = quenches[name, minimiser]
     packing = result.packing
     _, overlapping = min_gap(packing.positions, packing.diameters, packing.box)
     assert overlapping == 0
@@ -62,9 +71,9 @@ def test_no_overlap_and_tiny_contact_gaps(quenches, name):
     np.testing.assert_allclose(packing.diameters, CASES[name][0], rtol=1e-14)
 
 
-@pytest.mark.parametrize("name", CASES)
-def test_pressure_below_target_and_phi_in_band(quenches, name):
-    result = quenches[name]
+@pytest.mark.parametrize("name, minimiser", RUNS)
+def test_pressure_below_target_and_phi_in_band(quenches, name, minimiser):
+    result = quenches[name, minimiser]
     low, high = CASES[name][3]
     assert 0 < result.extra["pressure"] <= TARGET
     assert low < result.packing.phi < high
@@ -75,11 +84,11 @@ def test_pressure_below_target_and_phi_in_band(quenches, name):
     assert np.isnan(result.reduced_pressure)
 
 
-@pytest.mark.parametrize("name", CASES)
-def test_pressure_agrees_with_the_contact_overlaps(quenches, name):
+@pytest.mark.parametrize("name, minimiser", RUNS)
+def test_pressure_agrees_with_the_contact_overlaps(quenches, name, minimiser):
     # p = Σ f_ij r_ij / (d V) in units of ε/⟨σ⟩^d before the shrink, with f_ij r_ij =
     # ε δ_ij (1 − δ_ij) for a relative overlap δ_ij (rattlers hold none)
-    result = quenches[name]
+    result = quenches[name, minimiser]
     packing, overlaps = result.packing, result.extra["contact_overlaps"]
     mean = packing.mean_diameter / result.extra["shrink_factor"]
     volume = float(np.prod(packing.box))
@@ -88,9 +97,9 @@ def test_pressure_agrees_with_the_contact_overlaps(quenches, name):
     assert np.all(overlaps > 0) and overlaps.max() == result.extra["max_overlap"]
 
 
-@pytest.mark.parametrize("name", CASES)
-def test_network_is_the_overlap_network_without_rattlers(quenches, name):
-    result = quenches[name]
+@pytest.mark.parametrize("name, minimiser", RUNS)
+def test_network_is_the_overlap_network_without_rattlers(quenches, name, minimiser):
+    result = quenches[name, minimiser]
     packing, contacts = result.packing, result.contacts
     n, d = packing.n, packing.d
     assert contacts.dtype == np.int64 and contacts.ndim == 2 and contacts.shape[1] == 2
@@ -119,18 +128,19 @@ def test_network_is_the_overlap_network_without_rattlers(quenches, name):
     assert result.extra["isostaticity_gap"] == len(contacts) - (d * (stable - 1) + 1)
 
 
-def test_networks_are_isostatic_or_nearly(quenches):
-    gaps = {name: result.extra["isostaticity_gap"] for name, result in quenches.items()}
-    assert gaps == {"d2_bidisperse": 0, "d3_mono": 0, "d3_lognormal": 0, "d4_mono": 0}
+def test_networks_are_isostatic(quenches):
+    gaps = {run: result.extra["isostaticity_gap"] for run, result in quenches.items()}
+    assert gaps == {run: 0 for run in RUNS}
 
 
-def test_deterministic_whatever_the_threads_and_in_input_order():
+@pytest.mark.parametrize("minimiser", MINIMISERS)
+def test_deterministic_whatever_the_threads_and_in_input_order(minimiser):
     sizes = dist.bidisperse(160, 1.4, 0.5, seed=1)   # 2 blocks of the force loop
-    a = generators.soft_quench(sizes, 3, seed=4)
+    a = generators.soft_quench(sizes, 3, seed=4, minimiser=minimiser)
     threads = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
-        b = generators.soft_quench(sizes, 3, seed=4)
+        b = generators.soft_quench(sizes, 3, seed=4, minimiser=minimiser)
     finally:
         numba.set_num_threads(threads)
     np.testing.assert_array_equal(a.packing.positions, b.packing.positions)
@@ -152,6 +162,7 @@ def test_a_start_below_jamming_is_compressed():
     (dict(diameters=np.ones(100), d=3, force_tolerance=-1e-6), "force_tolerance"),
     (dict(diameters=np.ones(100), d=3, skin=0.0), "skin"),
     (dict(diameters=np.ones(100), d=3, max_steps=0), "max_steps"),
+    (dict(diameters=np.ones(100), d=3, minimiser="cg"), "minimiser"),
     (dict(diameters=np.ones(8), d=3), "too few particles"),
     (dict(diameters=np.ones(14), d=3, phi_start=0.1), "too few particles"),  # grows
 ])
