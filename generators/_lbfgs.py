@@ -72,7 +72,7 @@ def _enthalpy(x, still, s, scale, box, first, second, incoming_start, incoming, 
     return enthalpy, gradient_u, largest2, force_sum, pressure, overlaps
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
 def _direction(f, gradient_u, memory_x, memory_u, stored, newest, p):
     """p ← −H̃ ∇H by the two-loop recursion over the `stored` newest pairs (s, y); returns
     its u component.
@@ -148,7 +148,29 @@ def _place(x, x0, p, alpha, x_built):
     return drift2
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=True)
+def _memorise(memory_x, memory_u, k, alpha, p, p_u, f0, f, change_u):
+    """Store the step s = α (p, p_u) and the gradient change y = (f0 − f, change_u) in slot
+    k of the history, with 1/(s·y) and s·y/(y·y); return False unless s·y > 0, the
+    curvature that keeps the inverse-Hessian estimate positive definite (slot k is then
+    overwritten but not to be used)."""
+    size = p.size
+    step, before, after = p.reshape(size), f0.reshape(size), f.reshape(size)
+    sy = alpha * p_u * change_u
+    yy = change_u * change_u
+    for i in range(size):
+        memory_x[0, k, i] = alpha * step[i]
+        memory_x[1, k, i] = before[i] - after[i]
+        sy += memory_x[0, k, i] * memory_x[1, k, i]
+        yy += memory_x[1, k, i] * memory_x[1, k, i]
+    if not sy > 0.0:
+        return False
+    memory_u[0, k], memory_u[1, k] = alpha * p_u, change_u
+    memory_u[2, k], memory_u[3, k] = 1.0 / sy, sy / yy
+    return True
+
+
+@njit(cache=True, fastmath=True)
 def _slope(f, gradient_u, p, p_u):
     """Directional derivative ∇H · (p, p_u) with ∇_x H = −F."""
     n, d = f.shape
@@ -325,23 +347,10 @@ def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, sk
             stored = 0
             continue
         k = (newest + 1) % m
-        sy = (alpha * p_u) * (gradient_u - gradient_u0)
-        for i in range(n):
-            for mu in range(d):
-                step = alpha * p[i, mu]
-                change = f0[i, mu] - f[i, mu]
-                memory_x[0, k, i * d + mu] = step
-                memory_x[1, k, i * d + mu] = change
-                sy += step * change
-        if sy > 0.0:
-            memory_u[0, k] = alpha * p_u
-            memory_u[1, k] = gradient_u - gradient_u0
-            yy = memory_u[1, k] * memory_u[1, k]
-            for i in range(n * d):
-                yy += memory_x[1, k, i] * memory_x[1, k, i]
-            memory_u[2, k] = 1.0 / sy
-            memory_u[3, k] = sy / yy
+        if _memorise(memory_x, memory_u, k, alpha, p, p_u, f0, f, gradient_u - gradient_u0):
             newest, stored = k, min(stored + 1, m)
+        else:                           # slot k (the oldest pair when full) was overwritten
+            stored = min(stored, m - 1)
     state[LOG_SCALE], state[STORED], state[NEWEST] = log_scale, stored, newest
     state[EVALUATIONS] += steps
     return code, steps, pressure, np.sqrt(drift2)
