@@ -4,7 +4,9 @@ Run with ``nice -n 10 python bench/soft_quench.py`` (N = 1024, 4096, 16384 in d 
 seed each), or choose: ``--sizes 1024 4096 --seeds 1 2 3 --d 3 --json results.json``;
 ``--minimiser fire lbfgs`` runs each case with each minimiser; ``--jam`` then hands the
 quench's network to ``calippso.jam(..., network_first="require")`` and reports its LPs,
-time and φ_J (a refused network is reported as such).
+time and φ_J (a refused network is reported as such). ``--kernels`` times instead each Numba
+kernel of the quench with 1 and 2 threads, on the state after the first `--rungs`
+minimisations of the ladder (one row per kernel and size: µs per call, speed-up).
 Prints one row per run: the packing fraction after the shrink, the final soft pressure,
 minimisations, steps (FIRE steps or L-BFGS force evaluations), the steps of the slowest
 minimisation over the median of the others, wall and CPU seconds (all threads), and the
@@ -16,14 +18,22 @@ on-disk cache is warm.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import time
 from pathlib import Path
 
+import numba
 import numpy as np
 
 import generators
+from generators import _fire, _lbfgs
 from generators import diameters as dist
+from generators.cells import verlet_lists
+from generators.initial import poisson
+
+#: Wall time spent timing each kernel at each thread count (s), after one warm-up call.
+KERNEL_SECONDS = 1.0
 
 
 def slowest_over_median(steps: np.ndarray) -> float:
@@ -69,6 +79,64 @@ def run(n: int, d: int, seed: int, target_pressure: float, minimiser: str,
     return {**row, **(jam_row(result) if jam else {})}
 
 
+def per_call(call, seconds: float = KERNEL_SECONDS) -> float:
+    """Mean wall time of `call()` in µs, repeated for about `seconds`."""
+    call()
+    calls, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        call()
+        calls += 1
+    return (time.perf_counter() - start) / calls * 1e6
+
+
+def kernel_rows(n: int, d: int, seed: int, rungs: int) -> list[dict]:
+    """µs per call of each quench kernel with 1 and 2 threads, at the state after `rungs`
+    minimisations (FIRE) of the ladder of the default quench."""
+    quench = importlib.import_module("generators.soft_quench")
+    sizes = dist.monodisperse(n)
+    typical = quench.phi_estimate(d)
+    start = poisson(sizes, d, phi=quench.PHI_START_FACTOR * typical, seed=seed)
+    system = quench._SoftSpheres(start.positions, sizes, start.box, 0.2)
+    for pressure in quench._pressure_ladder(quench.TARGET_AIM * 1e-7)[:rungs]:
+        system.minimise(pressure, quench.INTERMEDIATE_TOLERANCE, 10**7)
+    system.rebuild()
+    x, s, box, lists = system.x, system.s, system.box, system.lists
+    f, v, y = np.zeros_like(x), np.zeros_like(x), x.copy()
+    partial = _fire.work_array(n)
+    pair_force = np.empty((lists[1].shape[0], d))
+    rng = np.random.default_rng(seed)
+    memory_x = rng.random((2, _lbfgs.HISTORY, x.size))
+    memory_u = rng.random((4, _lbfgs.HISTORY))
+    radii = system.scale * s
+    csr = verlet_lists(x, box, radii, system.skin)
+    kernels = {
+        "harmonic_forces": lambda: _fire.harmonic_forces(x, v, s, system.scale, box, *lists,
+                                                         pair_force, f, partial),
+        "fire _move": lambda: _fire._move(y, v, f, x, 1e-9, 0.9, 0.0, False),
+        "lbfgs _direction": lambda: _lbfgs._direction(f, 0.0, memory_x, memory_u,
+                                                      _lbfgs.HISTORY, 0, v),
+        "lbfgs _slope": lambda: _lbfgs._slope(f, 0.0, v, 0.0),
+        "lbfgs _place": lambda: _lbfgs._place(y, x, v, 1e-9, x),
+        "cell_order": lambda: _fire.cell_order(x, box, radii.max() + system.skin),
+        "verlet_lists": lambda: verlet_lists(x, box, radii, system.skin),
+        "pair_lists": lambda: _fire.pair_lists(*csr),
+    }
+    threads = numba.get_num_threads()
+    rows = []
+    try:
+        for name, call in kernels.items():
+            times = []
+            for count in (1, 2):
+                numba.set_num_threads(min(count, threads))
+                times.append(per_call(call))
+            rows.append({"n": n, "d": d, "kernel": name, "pairs": int(lists[1].shape[0]),
+                         "skin": system.skin, "us_1": times[0], "us_2": times[1],
+                         "speedup": times[0] / times[1]})
+    finally:
+        numba.set_num_threads(threads)
+    return rows
+
+
 def format_row(row: dict) -> str:
     line = (f"{row['n']:>6} {row['d']:>2} {row['seed']:>4} {row['minimiser']:>6} "
             f"{row['phi']:>8.5f} {row['pressure']:>8.2e} {row['minimisations']:>4} "
@@ -93,8 +161,26 @@ def main() -> None:
                         choices=["fire", "lbfgs"], help="run each case with each of these")
     parser.add_argument("--jam", action="store_true",
                         help="jam each result with its network (network_first='require')")
+    parser.add_argument("--kernels", action="store_true",
+                        help="time each kernel with 1 and 2 threads instead of quenching")
+    parser.add_argument("--rungs", type=int, default=3,
+                        help="with --kernels: minimisations before the timing")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = parser.parse_args()
+
+    if args.kernels:
+        print(f"{'N':>6} {'d':>2} {'kernel':<18} {'pairs':>8} {'1 thread µs':>12} "
+              f"{'2 threads µs':>13} {'speed-up':>8}")
+        rows = []
+        for n in args.sizes:
+            for row in kernel_rows(n, args.d, args.seeds[0], args.rungs):
+                rows.append(row)
+                print(f"{n:>6} {args.d:>2} {row['kernel']:<18} {row['pairs']:>8} "
+                      f"{row['us_1']:>12.1f} {row['us_2']:>13.1f} {row['speedup']:>8.2f}",
+                      flush=True)
+        if args.json is not None:
+            args.json.write_text(json.dumps(rows, indent=1))
+        return
 
     header = (f"{'N':>6} {'d':>2} {'seed':>4} {'method':>6} {'phi':>8} {'p':>8} {'min':>4} "
               f"{'steps':>9} {'max/md':>6} {'wall s':>7} {'CPU s':>7} {'iso gap':>7}")

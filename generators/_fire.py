@@ -19,7 +19,7 @@ from numba import njit, prange
 from .periodic import image_component
 
 __all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "contact_pairs",
-           "CONVERGED", "REBUILD", "OUT_OF_STEPS"]
+           "box_volume", "CONVERGED", "REBUILD", "OUT_OF_STEPS"]
 
 #: FIRE parameters of Bitzek et al., PRL 97, 170201 (2006): steps of positive power before Δt
 #: may grow (also the initial delay of FIRE 2.0), growth and cut factors of Δt, initial
@@ -364,6 +364,19 @@ def _move(x: np.ndarray, v: np.ndarray, f: np.ndarray, x_built: np.ndarray, dt: 
 
 
 @njit(cache=True)
+def box_volume(box: np.ndarray) -> float:
+    """Product of the box sides, left to right (a plain loop: inside a parallel=True caller
+    np.prod may become a threaded reduction, whose rounding depends on the threads)."""
+    volume = 1.0
+    for side in box:
+        volume *= side
+    return volume
+
+
+# fire_run calls the parallel `harmonic_forces`. Compiled with parallel=True itself (it has
+# no prange), it loads safely from Numba's on-disk cache even when a new argument type makes
+# it compile anew; a cached serial caller of a parallel function crashes (numba issue #8578).
+@njit(parallel=True, cache=True)
 def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np.ndarray,
              first: np.ndarray, second: np.ndarray, incoming_start: np.ndarray,
              incoming: np.ndarray, x_built: np.ndarray, skin: float, scale_built: float,
@@ -419,7 +432,7 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
         Largest distance a particle moved since the list build.
     """
     n, d = x.shape
-    volume = np.prod(box)
+    volume = box_volume(box)
     root_mass = np.sqrt(SCALE_MASS * n * d)
     largest = s.max()
     partial = work_array(n)

@@ -20,7 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._fire import CONVERGED, OUT_OF_STEPS, REBUILD, harmonic_forces, work_array
+from ._fire import (CONVERGED, OUT_OF_STEPS, REBUILD, box_volume, harmonic_forces,
+                    work_array)
 
 __all__ = ["HISTORY", "STATE_SIZE", "lbfgs_run", "new_state"]
 
@@ -52,17 +53,14 @@ def new_state(log_scale: float) -> np.ndarray:
     return state
 
 
-# `_enthalpy` and `lbfgs_run` call the parallel `_fire.harmonic_forces`: compiled with
-# parallel=True themselves, they load from Numba's on-disk cache; compiled without, the cached
-# code crashes (numba issue #8578, a cached caller of a parallel function in another module).
-@njit(parallel=True, cache=True)
+@njit
 def _enthalpy(x, still, s, scale, box, first, second, incoming_start, incoming, pair_force, f,
               partial, target, root_mass):
     """Forces into `f`; H, ∂H/∂u, max |F_i|², Σ f_ij over overlaps, pressure, overlaps.
 
     `still` is a zero array of the shape of x (the velocities `harmonic_forces` reads)."""
     d = x.shape[1]
-    volume = np.prod(box) / scale**d
+    volume = box_volume(box) / scale**d
     _, _, _, largest2, force_sum, virial, overlaps, energy = harmonic_forces(
         x, still, s, scale, box, first, second, incoming_start, incoming, pair_force, f,
         partial)
@@ -181,6 +179,10 @@ def _slope(f, gradient_u, p, p_u):
     return slope
 
 
+# lbfgs_run calls the parallel `_fire.harmonic_forces` (through `_enthalpy`, compiled into it).
+# Compiled with parallel=True itself (as `_fire.fire_run`), it loads safely from Numba's
+# on-disk cache; a cached serial caller of a parallel function crashes (numba issue #8578).
+# It holds no array expression whose rounding a threaded reduction could change.
 @njit(parallel=True, cache=True)
 def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, skin,
               scale_built, state, memory_x, memory_u, tolerance, force_floor, target,
