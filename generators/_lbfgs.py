@@ -168,6 +168,15 @@ def _memorise(memory_x, memory_u, k, alpha, p, p_u, f0, f, change_u):
     return True
 
 
+@njit(cache=True)
+def _copy(target, source):
+    """target ← source, arrays of the same shape (a serial loop: in the parallel `lbfgs_run`
+    an array assignment becomes a threaded loop, whose start costs more than the copy)."""
+    flat_target, flat_source = target.reshape(target.size), source.reshape(source.size)
+    for i in range(flat_target.size):
+        flat_target[i] = flat_source[i]
+
+
 @njit(cache=True, fastmath=True)
 def _slope(f, gradient_u, p, p_u):
     """Directional derivative ∇H · (p, p_u) with ∇_x H = −F."""
@@ -240,10 +249,10 @@ def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, sk
     largest = s.max()
     partial = work_array(n)
     pair_force = np.empty((second.shape[0], d))
-    still = np.zeros_like(x)
-    x0 = np.empty_like(x)
-    f0 = np.empty_like(x)
-    p = np.empty_like(x)
+    still = np.zeros((n, d))
+    x0 = np.empty((n, d))
+    f0 = np.empty((n, d))
+    p = np.empty((n, d))
     log_scale = state[LOG_SCALE]
     stored, newest = int(state[STORED]), int(state[NEWEST])
     scale = np.exp(log_scale)
@@ -283,8 +292,8 @@ def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, sk
         growth = largest * scale * abs(p_u) / root_mass
         reach = max(np.sqrt(move2), growth)
         alpha_max = MOVE_FRACTION * skin / reach if reach > 0.0 else 1.0
-        x0[:, :] = x
-        f0[:, :] = f
+        _copy(x0, x)
+        _copy(f0, f)
         log_scale0, gradient_u0, enthalpy0, pressure0 = log_scale, gradient_u, enthalpy, pressure
         roundoff = ENERGY_ROUNDOFF * np.finfo(np.float64).eps * enthalpy0
         alpha = min(1.0, alpha_max)
@@ -332,14 +341,14 @@ def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, sk
                                     / (slope_previous - slope))
                     alpha = min(max(guess, alpha), alpha_max)
         if outrun:                      # back to the start of the step, rebuild first
-            x[:, :] = x0
-            f[:, :] = f0
+            _copy(x, x0)
+            _copy(f, f0)
             log_scale = log_scale0
             pressure = pressure0
             code = REBUILD
             break
         if not accepted and stored > 0:  # no acceptable step: forget the history, retry
-            x[:, :] = x0
+            _copy(x, x0)
             log_scale = log_scale0
             scale = np.exp(log_scale)
             enthalpy, gradient_u, largest2, force_sum, pressure, overlaps = _enthalpy(
