@@ -83,6 +83,9 @@ class Refinement:
         Largest displacement component of a stable particle from the start.
     residual : float
         max_c | |r_c|²/σ_c² − Γ | at the end.
+    factorization : (Factors, scipy.sparse.csc_matrix) or None
+        The last sparse LU made and the Jacobian it factorises (near the solution), for
+        solves that follow (`calippso.pivots`); None when every step used given factors.
     """
 
     positions: np.ndarray
@@ -93,6 +96,7 @@ class Refinement:
     sqrt_gamma_minus_1: float
     max_displacement: float
     residual: float
+    factorization: tuple[Factors, sp.csc_matrix] | None = None
 
     @property
     def positive(self) -> bool:
@@ -166,7 +170,8 @@ def contact_jacobian(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
 
 
 def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                     i: np.ndarray, j: np.ndarray, stable: np.ndarray) -> Refinement | None:
+                     i: np.ndarray, j: np.ndarray, stable: np.ndarray,
+                     factors: Factors | None = None) -> Refinement | None:
     """Solve the contact equations of an isostatic network and certify the forces.
 
     Chord steps: the Jacobian is factorised once, at the start, and its factors serve every
@@ -185,6 +190,9 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         The contacts, between stable particles, with M = d (N_s − 1) + 1.
     stable : ndarray, shape (N,), bool
         Non-rattlers; every stable particle has a contact.
+    factors : Factors, optional
+        Factors of a matrix close to the Jacobian at `positions` (the same unknowns), used
+        for the first chord steps instead of a new factorisation.
 
     Returns
     -------
@@ -216,17 +224,26 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         return _jacobian(vectors, inverse_sigma2, i_col, j_col, n_unknowns)
 
     residual, vectors = residual_and_vectors()
-    factors = factorize(jacobian(vectors))
+    factorizations, previous, made = 0, np.inf, None
     if factors is None:
-        return None
-    factorizations, previous = 1, np.inf
+        matrix = jacobian(vectors)
+        factors = factorize(matrix, strict=False)
+        if factors is None:
+            return None
+        factorizations, made = 1, (factors, matrix)
     for iteration in range(1, MAX_ITERATIONS + 1):
         correction = factors.solve(-residual)
-        if not np.all(np.isfinite(correction)):
-            return None
         largest = float(np.abs(correction[:-1]).max(initial=0.0))
-        if largest > MAX_CORRECTION:
-            return None
+        if not (np.all(np.isfinite(correction)) and largest <= MAX_CORRECTION):
+            if made is not None:
+                return None
+            # the given factors are too far from this Jacobian: factorise it
+            matrix = jacobian(vectors)
+            factors = factorize(matrix, strict=False)
+            if factors is None:
+                return None
+            factorizations, made, previous = factorizations + 1, (factors, matrix), np.inf
+            continue
         moved[movable] += correction[:-1].reshape(-1, d)
         gamma += float(correction[-1])
         residual, vectors = residual_and_vectors()
@@ -236,10 +253,11 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         if stalled and float(np.abs(residual).max()) <= ROUNDOFF_RESIDUAL:
             break   # the corrections are round-off of a large system: converged
         if stalled:   # the chord is too slow: a Newton step
-            factors = factorize(jacobian(vectors))
+            matrix = jacobian(vectors)
+            factors = factorize(matrix, strict=False)
             if factors is None:
                 return None
-            factorizations += 1
+            factorizations, made = factorizations + 1, (factors, matrix)
             largest = np.inf
         previous = largest
     else:
@@ -259,7 +277,7 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         iterations=iteration, factorizations=factorizations,
         sqrt_gamma_minus_1=float(np.sqrt(gamma) - 1.0),
         max_displacement=float(np.abs(moved[movable] - positions[movable]).max(initial=0.0)),
-        residual=worst)
+        residual=worst, factorization=made)
 
 
 def _self_stress(factors: Factors, jacobian: sp.csc_matrix) -> np.ndarray | None:
@@ -268,24 +286,37 @@ def _self_stress(factors: Factors, jacobian: sp.csc_matrix) -> np.ndarray | None
     Iterative refinement: y ← y + F⁻ᵀ (b − Jᵀ y) with F the given factors, until every
     row of the residual is below `REFINEMENT_TOLERANCE` × that row of |Jᵀ| |y| + |b| (a
     componentwise backward error of a few units of round-off, as a factorisation of J
-    itself would give: each particle balanced to round-off of its own forces). When that takes more
-    than `MAX_REFINEMENTS` steps, J itself is factorised. None when J is singular.
+    itself would give: each particle balanced to round-off of its own forces). When that
+    takes more than `MAX_REFINEMENTS` steps, J itself is factorised (PARDISO factors with
+    perturbed pivots are refined the same way). None when J is singular.
     """
     target = np.zeros(jacobian.shape[0])
     target[-1] = -1.0
     transposed = jacobian.T.tocsr()
+    stress = _refined_transposed_solve(factors, transposed, target)
+    if stress is not None:
+        return stress
+    exact = factorize(jacobian)
+    if exact is not None:
+        stress = exact.solve(target, trans="T")
+        return stress if np.all(np.isfinite(stress)) else None
+    perturbed = factorize(jacobian, strict=False)
+    return None if perturbed is None else _refined_transposed_solve(perturbed, transposed,
+                                                                     target)
+
+
+def _refined_transposed_solve(factors: Factors, transposed: sp.csr_matrix,
+                              target: np.ndarray) -> np.ndarray | None:
+    """y with Jᵀ y = target by iterative refinement with `factors` (`_self_stress`), or None
+    when `MAX_REFINEMENTS` steps do not reach the backward error."""
     magnitudes = abs(transposed)
     stress = factors.solve(target, trans="T")
     for _ in range(MAX_REFINEMENTS + 1):
         if not np.all(np.isfinite(stress)):
-            break
+            return None
         remainder = target - transposed @ stress
         scale = magnitudes @ np.abs(stress) + np.abs(target)   # row by row: force units
         if np.all(np.abs(remainder) <= REFINEMENT_TOLERANCE * scale):
             return stress
         stress = stress + factors.solve(remainder, trans="T")
-    exact = factorize(jacobian)
-    if exact is None:
-        return None
-    stress = exact.solve(target, trans="T")
-    return stress if np.all(np.isfinite(stress)) else None
+    return None

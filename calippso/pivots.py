@@ -39,13 +39,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg import lu_factor, lu_solve
 
 from .neighbors import NeighborSearch, Pairs
 from .network import NEWTON_OVERLAP_TOLERANCE
-from .newton import MIN_FORCE_RATIO, Refinement, network_jacobian, refine_isostatic
+from .newton import (MAX_REFINEMENTS, MIN_FORCE_RATIO, REFINEMENT_TOLERANCE, Refinement,
+                     network_jacobian, refine_isostatic)
 from .packing import minimum_image
 from .rattlers import remove_rattlers, separate_rattlers
-from .sparse_lu import factorize
+from .sparse_lu import Factors, factorize
 
 __all__ = ["PivotPath", "Swap", "pivot_to_jamming", "describe_path", "MAX_PIVOTS", "NEAR_GAP",
            "MAX_NEAR_GAP", "DEGENERATE_STEP", "CAGE_CLOSED"]
@@ -66,6 +68,11 @@ DEGENERATE_STEP = 1e-14
 #: Why a pivot failed when a rattler's cage closed on it (the pivot is then tried again with
 #: the particles that the release leaves with d contacts kept in the network).
 CAGE_CLOSED = "a rattler's cage closed along the floppy mode"
+#: Rows swapped into one factorisation (`_Basis`) before the Jacobian is factorised again.
+MAX_ROW_SWAPS = 40
+#: The k × k system of the Woodbury identity is refused beyond this condition number (its
+#: solves would lose the accuracy that the chord steps and refinement need).
+MAX_SMALL_CONDITION = 1e10
 #: Swaps listed by name in `describe_path`.
 LISTED_SWAPS = 5
 #: Pairs of the ratio test tried in turn, when Newton's vertex for the first one overlaps
@@ -148,10 +155,69 @@ class _Vertex:
     j: np.ndarray
     stable: np.ndarray
     refinement: Refinement
+    basis: _Basis | None = None
+    swapped: tuple[int, ...] = ()
 
     @property
     def keys(self) -> np.ndarray:
         return self.i * self.stable.shape[0] + self.j
+
+
+class _SwappedFactors:
+    """Solves with a matrix M that equals a factorised base matrix B but in k rows R, by the
+    Woodbury identity: with W = B⁻¹ E_R (n × k) and V = M[R] − B[R] (k × n), S = I + V W,
+
+        M⁻¹ b = y − W S⁻¹ V y  (y = B⁻¹ b),   M⁻ᵀ b = B⁻ᵀ (b − Vᵀ S⁻ᵀ Wᵀ b):
+
+    one solve with the base factors and a k × k system per solve."""
+
+    def __init__(self, base: Factors, columns: np.ndarray, changes: sp.csr_matrix,
+                 small: tuple[np.ndarray, np.ndarray]):
+        self._base, self._columns, self._changes, self._small = base, columns, changes, small
+
+    def solve(self, rhs: np.ndarray, trans: str = "N") -> np.ndarray:
+        if trans == "T":
+            weights = lu_solve(self._small, self._columns.T @ rhs, trans=1)
+            return self._base.solve(rhs - self._changes.T @ weights, trans="T")
+        solution = self._base.solve(rhs)
+        return solution - self._columns @ lu_solve(self._small, self._changes @ solution)
+
+
+class _Basis:
+    """One sparse LU of a network's Jacobian (unknowns of the stable set `stable`), reused by
+    the pivots that follow: a pivot swaps one row, and `factors_for` solves with the swapped
+    matrix by the Woodbury identity (`_SwappedFactors`). The columns B⁻¹ e_r are kept."""
+
+    def __init__(self, factors: Factors, matrix: sp.spmatrix, stable: np.ndarray):
+        self.factors = factors
+        self.matrix = sp.csr_matrix(matrix)
+        self.stable = stable
+        self._columns: dict[int, np.ndarray] = {}
+
+    def fits(self, stable: np.ndarray) -> bool:
+        """Whether the unknowns are those of the basis (same stable particles)."""
+        return bool(np.array_equal(self.stable, stable))
+
+    def factors_for(self, matrix: sp.spmatrix, rows: tuple[int, ...]) -> Factors | None:
+        """Factors of `matrix`, which differs from the basis in `rows` (and by the motion of
+        the particles elsewhere: the factors are then those of a nearby matrix); None when
+        there are more than `MAX_ROW_SWAPS` rows or the small system is singular."""
+        if not rows:
+            return self.factors
+        if len(rows) > MAX_ROW_SWAPS:
+            return None
+        index = np.array(rows)
+        for row in rows:
+            if row not in self._columns:
+                unit = np.zeros(self.matrix.shape[0])
+                unit[row] = 1.0
+                self._columns[row] = self.factors.solve(unit)
+        columns = np.column_stack([self._columns[row] for row in rows])
+        changes = sp.csr_matrix(matrix)[index] - self.matrix[index]
+        small = np.eye(index.size) + changes @ columns
+        if not np.all(np.isfinite(small)) or np.linalg.cond(small) > MAX_SMALL_CONDITION:
+            return None
+        return _SwappedFactors(self.factors, columns, sp.csr_matrix(changes), lu_factor(small))
 
 
 def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -190,7 +256,8 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         if refined is None:
             return None, "Newton did not converge or the Jacobian is singular"
     start_positions, start_diameters = positions, diameters
-    vertex = _Vertex(i, j, stable, refined)
+    basis = None if refined.factorization is None else _Basis(*refined.factorization, stable)
+    vertex = _Vertex(i, j, stable, refined, basis)
     swaps: list[Swap] = []
     seen = {_network_digest(vertex)}
     factorizations = refined.factorizations
@@ -251,9 +318,22 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
     else:
         ratt, kept = remove_rattlers(n, d, vertex.i[keep], vertex.j[keep])
         i_a, j_a, stable = vertex.i[keep][kept], vertex.j[keep][kept], ~ratt
-    direction = _floppy_mode(search, i_a, j_a, stable)
-    if direction is None:
+    if np.array_equal(stable, vertex.stable):
+        # same unknowns: the row of the released contact is swapped in place
+        rows_i, rows_j, swap_row = vertex.i, vertex.j, released
+        basis, swapped = vertex.basis, vertex.swapped
+    else:   # rattlers left with their contacts: new unknowns, the swapped row last
+        rows_i, rows_j, swap_row = np.append(i_a, 0), np.append(j_a, 0), i_a.shape[0]
+        basis, swapped = None, ()
+    if basis is not None and not basis.fits(stable):
+        basis, swapped = None, ()
+    mode = _floppy_mode(search, rows_i, rows_j, stable, swap_row, basis, swapped)
+    if mode is None:
         return None, "the network without the released contact is singular"
+    direction, made = mode
+    solves = 0
+    if made is not None:   # K was factorised: the basis of this pivot and the next ones
+        basis, swapped, solves = _Basis(*made, stable), (), 1
     c_i, c_j = int(vertex.i[released]), int(vertex.j[released])
     if stable[c_i] and stable[c_j]:
         c_pair = search.pairs_of(np.array([c_i]), np.array([c_j]))
@@ -273,15 +353,18 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
     smallest = steps[order[0]]
     ties = order[steps[order] <= smallest + DEGENERATE_STEP]
     candidates = np.concatenate([ties[:1], order[~np.isin(order, ties[:1])]])
-    solves = 1
     failure = "Newton found no vertex without overlap along the floppy mode"
     positions = vertex.refinement.positions
     diameters = vertex.refinement.diameters
+    next_swapped = tuple(sorted(set(swapped) | {swap_row}))
     for closing in candidates[:RATIO_CANDIDATES]:
         predicted = positions + steps[closing] * direction
-        i_new = np.append(i_a, near.i[closing])
-        j_new = np.append(j_a, near.j[closing])
-        refined = refine_isostatic(predicted, diameters, search.box, i_new, j_new, stable)
+        i_new, j_new = rows_i.copy(), rows_j.copy()
+        i_new[swap_row], j_new[swap_row] = near.i[closing], near.j[closing]
+        factors = None if basis is None else basis.factors_for(
+            _jacobian_at(predicted, diameters, search.box, i_new, j_new, stable), next_swapped)
+        refined = refine_isostatic(predicted, diameters, search.box, i_new, j_new, stable,
+                                   factors=factors)
         if refined is None:
             continue
         solves += refined.factorizations
@@ -294,18 +377,31 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
             refined = replace(refined, forces=refined.forces[kept])
         now_stable = ~now_rattlers
         moved = NeighborSearch(refined.positions, refined.diameters, search.box)
-        candidate = _Vertex(i_new, j_new, now_stable, refined)
-        if np.any(_outside_pairs(moved, candidate, NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
+        if np.any(_outside_pairs(moved, _Vertex(i_new, j_new, now_stable, refined),
+                                 NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
             continue
         refined = _rattlers_out_of_the_way(moved, refined, now_stable)
         if refined is None:
             failure = CAGE_CLOSED
             continue
-        candidate = _Vertex(i_new, j_new, now_stable, refined)
+        if refined.factorization is not None:
+            next_basis, next_swaps = _Basis(*refined.factorization, stable), ()
+        else:
+            next_basis, next_swaps = basis, next_swapped
+        if not np.array_equal(now_stable, stable):   # the rows of the new rattlers left
+            next_basis, next_swaps = None, ()
+        candidate = _Vertex(i_new, j_new, now_stable, refined, next_basis, next_swaps)
         swap = Swap((c_i, c_j), (int(near.i[closing]), int(near.j[closing])), max(growth, 0.0),
                     int(np.count_nonzero(now_rattlers & vertex.stable)))
         return (candidate, swap, solves), ""
     return None, failure
+
+
+def _jacobian_at(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                 i: np.ndarray, j: np.ndarray, stable: np.ndarray) -> sp.csr_matrix:
+    """The contact Jacobian of network (i, j) at a configuration (`calippso.newton`)."""
+    vectors = minimum_image(positions[i] - positions[j], box)
+    return network_jacobian(vectors, 0.5 * (diameters[i] + diameters[j]), i, j, stable)
 
 
 def _rattlers_out_of_the_way(search: NeighborSearch, refined: Refinement,
@@ -321,38 +417,73 @@ def _rattlers_out_of_the_way(search: NeighborSearch, refined: Refinement,
     return None if separated is None else replace(refined, positions=separated)
 
 
-def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray,
-                 stable: np.ndarray) -> np.ndarray | None:
+def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: np.ndarray,
+                 gamma_row: int, basis: _Basis | None,
+                 swapped: tuple[int, ...]
+                 ) -> tuple[np.ndarray, tuple[Factors, sp.csr_matrix] | None] | None:
     """The floppy mode of a network with one contact fewer than unknowns, per particle.
 
-    Solves [J_A; e_Γᵀ] t = e_Γ: t is the null vector of J_A with dΓ = 1.
+    Solves K t = e_Γ, where K is the Jacobian of the pairs (i, j) with the row `gamma_row`
+    replaced by the row of Γ (appended when `gamma_row` is the number of pairs): t is the
+    null vector of the other rows with dΓ = 1.
+
+    Parameters
+    ----------
+    basis : _Basis or None
+        Factors to solve with, where K differs from the basis in rows `swapped` and
+        `gamma_row`; None: K is factorised.
 
     Returns
     -------
-    ndarray, shape (N, d), or None
+    (ndarray, shape (N, d), (Factors, matrix) or None) or None
         The displacement of every particle per unit of Γ (zero for the pinned particle and
-        the rattlers); None when the augmented matrix is singular (Γ cannot grow along the
-        floppy modes).
+        the rattlers), and K with its new factors when the basis could not serve; None when
+        K is singular (Γ cannot grow along the floppy modes).
     """
     n, d = search.positions.shape
     pairs = search.pairs_of(i, j)
     jacobian = network_jacobian(pairs.vectors, pairs.sigma, i, j, stable)
     n_unknowns = jacobian.shape[1]
-    if jacobian.shape[0] != n_unknowns - 1:
-        return None
-    gamma_row = sp.csr_matrix(([1.0], ([0], [n_unknowns - 1])), shape=(1, n_unknowns))
-    factors = factorize(sp.vstack([jacobian, gamma_row]).tocsc())
-    if factors is None:
+    rows = [jacobian[:gamma_row],
+            sp.csr_matrix(([1.0], ([0], [n_unknowns - 1])), shape=(1, n_unknowns)),
+            jacobian[gamma_row + 1:]]
+    matrix = sp.vstack(rows).tocsr()
+    if matrix.shape[0] != n_unknowns:
         return None
     target = np.zeros(n_unknowns)
-    target[-1] = 1.0
-    solution = factors.solve(target)
-    if not np.all(np.isfinite(solution)):
+    target[gamma_row] = 1.0
+    factors = None if basis is None else basis.factors_for(matrix, tuple(sorted(
+        set(swapped) | {gamma_row})))
+    solution = None if factors is None else _refined_solve(matrix, factors, target)
+    made = None
+    if solution is None:   # no factors, or too far from K: factorise K itself
+        factors = factorize(matrix.tocsc(), strict=False)
+        solution = None if factors is None else _refined_solve(matrix, factors, target)
+        made = (factors, matrix)
+    if solution is None:
         return None
     members = np.flatnonzero(stable)
     mode = np.zeros((n, d))
     mode[members[1:]] = solution[:-1].reshape(-1, d)
-    return mode
+    return mode, made
+
+
+def _refined_solve(matrix: sp.csr_matrix, factors: Factors,
+                   rhs: np.ndarray) -> np.ndarray | None:
+    """The solution of matrix x = rhs from factors of a nearby matrix, by iterative
+    refinement to a componentwise backward error of `REFINEMENT_TOLERANCE` (as
+    `calippso.newton` does for the forces); None when `MAX_REFINEMENTS` steps do not reach it."""
+    magnitudes = abs(matrix)
+    solution = factors.solve(rhs)
+    for _ in range(MAX_REFINEMENTS + 1):
+        if not np.all(np.isfinite(solution)):
+            return None
+        remainder = rhs - matrix @ solution
+        if np.all(np.abs(remainder) <= REFINEMENT_TOLERANCE
+                  * (magnitudes @ np.abs(solution) + np.abs(rhs))):
+            return solution
+        solution = solution + factors.solve(remainder)
+    return None
 
 
 def _closing_rates(pairs: Pairs, mode: np.ndarray) -> np.ndarray:

@@ -64,7 +64,7 @@ def _pardiso_solver():
     return pypardiso.PyPardisoSolver(mtype=11)
 
 
-def factorize(matrix: sp.spmatrix, method: str = "auto") -> Factors | None:
+def factorize(matrix: sp.spmatrix, method: str = "auto", strict: bool = True) -> Factors | None:
     """LU factors of a square sparse matrix, or None when it is singular.
 
     Parameters
@@ -73,13 +73,18 @@ def factorize(matrix: sp.spmatrix, method: str = "auto") -> Factors | None:
     method : {"auto", "superlu", "pardiso"}
         "auto": PARDISO from `PARDISO_MIN_UNKNOWNS` unknowns on when `pypardiso` is
         installed, SuperLU otherwise.
+    strict : bool
+        Refuse PARDISO factors with perturbed pivots whose test solve is inaccurate (they
+        may belong to a singular matrix). With False they are kept: the caller refines its
+        solves against the matrix and judges them by their residuals (a non-singular
+        matrix then solves to round-off, a singular one does not).
     """
     if method not in ("auto", "superlu", "pardiso"):
         raise ValueError(f"unknown factorisation {method!r}: choose auto, superlu or pardiso")
     use_pardiso = method == "pardiso" or (
         method == "auto" and matrix.shape[0] >= PARDISO_MIN_UNKNOWNS and pardiso_available())
     if use_pardiso:
-        return _PardisoFactors.of(matrix)
+        return _PardisoFactors.of(matrix, strict)
     try:
         return splu(sp.csc_matrix(matrix), permc_spec="COLAMD")
     except RuntimeError:  # exactly singular
@@ -110,7 +115,7 @@ class _PardisoFactors:
                                          shape=matrix.shape)
 
     @classmethod
-    def of(cls, matrix: sp.spmatrix) -> "_PardisoFactors | None":
+    def of(cls, matrix: sp.spmatrix, strict: bool = True) -> "_PardisoFactors | None":
         csr = sp.csr_matrix(matrix, dtype=np.float64)
         csr.sort_indices()
         if not np.diff(csr.indptr).all() or not np.diff(csr.tocsc().indptr).all():
@@ -118,7 +123,7 @@ class _PardisoFactors:
         solver = _pardiso_solver()
         solver.factorize(csr)
         factors = cls(solver, csr)
-        if solver.get_iparm(cls.PERTURBED_PIVOTS) > 0 and not factors._accurate():
+        if strict and solver.get_iparm(cls.PERTURBED_PIVOTS) > 0 and not factors._accurate():
             solver.free_memory(everything=True)
             return None
         return factors
