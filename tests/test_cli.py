@@ -436,3 +436,17 @@ def test_generate_quench_keeps_its_network_for_jam(capfd, tmp_path):
     assert record["isostatic"] and record["force_balance"] < 1e-12
     notes = calippso.load_result(tmp_path / "jammed.npz").notes
     assert any("given as a hint" in note or "(hint: " in note for note in notes)
+
+
+def test_jam_pivots_option(capfd, tmp_path, start_2d):
+    """--pivots reaches jam: 'always' and 'off' jam this start to the same certified packing,
+    and an unknown mode is a usage error."""
+    results = {}
+    for mode in ("always", "off"):
+        path = tmp_path / f"{mode}.npz"
+        assert _run(capfd, "jam", start_2d, "-o", path, "--pivots", mode, "--quiet")[0] == 0
+        results[mode] = calippso.load_result(path)
+        assert results[mode].converged and results[mode].isostatic
+    np.testing.assert_array_equal(results["always"].contacts, results["off"].contacts)
+    code, _, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "z.npz", "--pivots", "some")
+    assert code == 2 and "--pivots" in err

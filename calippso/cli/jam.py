@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..settings import INTERIOR_POINT_SOLVERS, NETWORK_FIRST_MODES
+from ..settings import INTERIOR_POINT_SOLVERS, NETWORK_FIRST_MODES, PIVOT_MODES
 from .common import (checkpoint_option, naming, output_options, output_path, positive,
                      solver_option)
 from .progress import jam_with_progress
@@ -96,6 +96,14 @@ def jam_record(result, source, output: Path | None) -> dict:
     "if that fails; off: LPs only; require: fail instead of running an LP).",
 )
 @click.option(
+    "--pivots",
+    type=click.Choice(PIVOT_MODES),
+    default="network_first",
+    show_default=True,
+    help="Where contact pivots repair an isostatic network whose forces are not all "
+    "positive (network_first: in that stage; always: in the LP loop too; off: never).",
+)
+@click.option(
     "--network",
     "network_path",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
@@ -106,7 +114,7 @@ def jam_record(result, source, output: Path | None) -> dict:
 @checkpoint_option
 @output_options
 def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
-        precompress_pressure, network_first, network_path, checkpoint, out):
+        precompress_pressure, network_first, pivots, network_path, checkpoint, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
@@ -137,6 +145,7 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
             tol_s=tol_s,
             max_iters=max_iters,
             network_first=network_first,
+            pivots=pivots,
             network=network,
             checkpoint=checkpoint,
         )
