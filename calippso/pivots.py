@@ -23,9 +23,11 @@ exact geometry, one contact at a time, as the simplex method moves from vertex t
 
 Rattlers (those of the start, and those a release leaves) carry no force and do not move
 with the floppy modes; when a moved cage overlaps its rattler, the rattler is moved out of
-the way (`calippso.rattlers.separate_rattlers`). When the cage of a particle that the
-release left with d contacts closes on it, the pivot is made again with that particle kept
-in the network, held by its d contacts: the pair that closes on it makes it stable again.
+the way (`calippso.rattlers.separate_rattlers`). When a cage closes on its rattler before
+the pair of the ratio test closes, the rattler joins the network with the d + 1 pairs of its
+cage (d unknowns and d + 1 rows: the released network becomes isostatic again). When the
+cage of a particle that the release left with d contacts closes on it, the pivot is made
+again with that particle kept in the network, held by its d contacts.
 
 Γ never decreases, so the path can only revisit a network through degenerate pivots (where
 the closing pair already touches); Bland's rule and a record of the networks seen rule that
@@ -65,6 +67,11 @@ MAX_NEAR_GAP = 0.3
 #: An inflation step (relative, ΔΓ/Γ) below this is a degenerate pivot: the closing pair
 #: already touches, Γ does not grow.
 DEGENERATE_STEP = 1e-14
+#: Largest displacement component of a rattler moved out of the way of its moved cage
+#: (mean diameters): the cages move by up to ~1e-4 over a path.
+RATTLER_REACH = 1e-3
+#: A caged rattler's d + 1 closest neighbours are looked for within this relative gap.
+CAGE_GAP = 1e-2
 #: Why a pivot failed when a rattler's cage closed on it (the pivot is then tried again with
 #: the particles that the release leaves with d contacts kept in the network).
 CAGE_CLOSED = "a rattler's cage closed along the floppy mode"
@@ -94,12 +101,16 @@ class Swap:
         √(Γ'/Γ) − 1: the relative diameter growth of this pivot (0 when degenerate).
     new_rattlers : int
         Particles the release left with d contacts (they leave the network).
+    rejoined : int
+        Rattlers whose cage closed along the floppy mode (they join the network with d + 1
+        contacts; `closed` is the first of them).
     """
 
     released: tuple[int, int]
     closed: tuple[int, int]
     growth: float
     new_rattlers: int
+    rejoined: int = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -256,6 +267,10 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         if refined is None:
             return None, "Newton did not converge or the Jacobian is singular"
     start_positions, start_diameters = positions, diameters
+    refined = _rattlers_out_of_the_way(
+        NeighborSearch(refined.positions, refined.diameters, box), refined, stable)
+    if refined is None:
+        return None, "a rattler overlaps its cage at the start"
     basis = None if refined.factorization is None else _Basis(*refined.factorization, stable)
     vertex = _Vertex(i, j, stable, refined, basis)
     swaps: list[Swap] = []
@@ -380,10 +395,18 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
         if np.any(_outside_pairs(moved, _Vertex(i_new, j_new, now_stable, refined),
                                  NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
             continue
-        refined = _rattlers_out_of_the_way(moved, refined, now_stable)
-        if refined is None:
+        separated = _rattlers_out_of_the_way(moved, refined, now_stable)
+        if separated is None:   # a cage closed on its rattler before this pair closed
+            rejoined = _rejoin_caged(moved, vertex, i_a, j_a, stable)
+            if rejoined is not None:
+                joined, pairs, joined_growth = rejoined
+                solves += joined.refinement.factorizations
+                swap = Swap((c_i, c_j), pairs[0], max(joined_growth, 0.0),
+                            int(np.count_nonzero(~stable & vertex.stable)), rejoined=1)
+                return (joined, swap, solves), ""
             failure = CAGE_CLOSED
             continue
+        refined = separated
         if refined.factorization is not None:
             next_basis, next_swaps = _Basis(*refined.factorization, stable), ()
         else:
@@ -404,6 +427,55 @@ def _jacobian_at(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
     return network_jacobian(vectors, 0.5 * (diameters[i] + diameters[j]), i, j, stable)
 
 
+def _rejoin_caged(moved: NeighborSearch, vertex: _Vertex, i_a: np.ndarray, j_a: np.ndarray,
+                  stable: np.ndarray) -> tuple[_Vertex, list[tuple[int, int]], float] | None:
+    """A rattler whose cage closed along the floppy mode joins the network again.
+
+    `moved` is the configuration one pair too far along the mode, where a rattler overlaps
+    its cage and cannot be moved out. Its d + 1 closest pairs with stable particles there
+    (its cage) close instead: the released network A (one floppy mode) with those d + 1 rows
+    and the rattler's d unknowns is isostatic, and Newton solves it from the vertex.
+
+    Returns
+    -------
+    (vertex, pairs, growth) or None
+        The new vertex, the cage's pairs, the relative diameter growth; None when no caged
+        rattler gives a vertex with no overlap.
+    """
+    n, d = moved.positions.shape
+    close = moved.pairs_within(float(moved.diameters.max()) * (1.0 + CAGE_GAP))
+    one_rattler = stable[close.i] != stable[close.j]
+    overlapping = one_rattler & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
+    rattler_of = np.where(stable[close.i], close.j, close.i)
+    caged = np.unique(rattler_of[overlapping])
+    positions, diameters = vertex.refinement.positions, vertex.refinement.diameters
+    for rattler in caged[np.argsort([close.gaps[overlapping & (rattler_of == r)].min()
+                                     for r in caged])]:
+        own = np.flatnonzero(one_rattler & (rattler_of == rattler))
+        if own.size < d + 1:
+            continue
+        cage = own[np.argsort(close.gaps[own])[:d + 1]]
+        i_new = np.concatenate([i_a, close.i[cage]])
+        j_new = np.concatenate([j_a, close.j[cage]])
+        joined = stable.copy()
+        joined[rattler] = True
+        refined = refine_isostatic(positions, diameters, moved.box, i_new, j_new, joined)
+        if refined is None:
+            continue
+        growth = float(np.mean(refined.diameters / diameters)) - 1.0
+        after = NeighborSearch(refined.positions, refined.diameters, moved.box)
+        candidate = _Vertex(i_new, j_new, joined, refined)
+        if (growth < -DEGENERATE_STEP or np.any(
+                _outside_pairs(after, candidate, NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE)):
+            continue
+        separated = _rattlers_out_of_the_way(after, refined, joined)
+        if separated is None:
+            continue
+        pairs = [(int(a), int(b)) for a, b in zip(close.i[cage], close.j[cage])]
+        return _Vertex(i_new, j_new, joined, separated), pairs, growth
+    return None
+
+
 def _rattlers_out_of_the_way(search: NeighborSearch, refined: Refinement,
                              stable: np.ndarray) -> Refinement | None:
     """`refined` with the rattlers moved out of the moved cages
@@ -413,7 +485,8 @@ def _rattlers_out_of_the_way(search: NeighborSearch, refined: Refinement,
     with_rattler = ~stable[close.i] | ~stable[close.j]
     if not np.any(with_rattler & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)):
         return refined
-    separated = separate_rattlers(refined.positions, refined.diameters, search.box, ~stable)
+    separated = separate_rattlers(refined.positions, refined.diameters, search.box, ~stable,
+                                  reach=RATTLER_REACH)
     return None if separated is None else replace(refined, positions=separated)
 
 
