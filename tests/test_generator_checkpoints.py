@@ -351,33 +351,42 @@ def test_quench_killed_mid_minimisation_resumes_bit_for_bit(tmp_path, monkeypatc
     assert_same_quench(again, reference)
 
 
-def test_quench_stopped_by_max_steps_continues_with_a_larger_limit(tmp_path, quench_references):
+@pytest.mark.parametrize("minimiser", ["fire", "lbfgs"])
+def test_quench_stopped_by_max_steps_continues_with_a_larger_limit(tmp_path, minimiser,
+                                                                   quench_references):
     """A quench stopped by `max_steps` says so, and called again with more steps it becomes
-    the run made with them from the start."""
+    the run made with them from the start. FIRE stops at the limit; L-BFGS finishes the line
+    search in progress."""
+    from generators._lbfgs import LINE_SEARCH_EVALUATIONS
+
     sizes, d = QUENCH_CASES["d3"]
-    reference = quench_references["d3", "fire"]
+    reference = quench_references["d3", minimiser]
+    limit = reference.steps // 2
     path = tmp_path / "staged.npz"
-    stopped = generators.soft_quench(sizes, d, seed=7, max_steps=reference.steps // 2,
-                                     checkpoint=path)
-    assert stopped.status.startswith(f"stopped at max_steps = {reference.steps // 2}")
-    assert stopped.steps == reference.steps // 2
-    same = generators.soft_quench(sizes, d, seed=7, max_steps=reference.steps // 2,
-                                  checkpoint=path)
+    stopped = generators.soft_quench(sizes, d, seed=7, max_steps=limit, checkpoint=path,
+                                     minimiser=minimiser)
+    assert stopped.status.startswith(f"stopped at max_steps = {limit}")
+    overshoot = 0 if minimiser == "fire" else LINE_SEARCH_EVALUATIONS
+    assert limit <= stopped.steps <= limit + overshoot
+    same = generators.soft_quench(sizes, d, seed=7, max_steps=limit, checkpoint=path,
+                                  minimiser=minimiser)
     assert_same_quench(same, stopped)
-    finished = generators.soft_quench(sizes, d, seed=7, checkpoint=path)
+    finished = generators.soft_quench(sizes, d, seed=7, checkpoint=path, minimiser=minimiser)
     assert_same_quench(finished, reference)
 
 
 def test_quench_checkpoint_of_another_run_is_refused(tmp_path):
     sizes, d = QUENCH_CASES["d3"]
     path = tmp_path / "quench.npz"
-    generators.soft_quench(sizes, d, seed=7, max_steps=500, checkpoint=path)
+    generators.soft_quench(sizes, d, seed=7, max_steps=500, checkpoint=path, minimiser="fire")
     with pytest.raises(ValueError, match=r"quench\.npz: checkpoint of another run; it differs "
                                          r"in seed \(checkpoint 7, this call 8\)"):
-        generators.soft_quench(sizes, d, seed=8, checkpoint=path)
+        generators.soft_quench(sizes, d, seed=8, checkpoint=path, minimiser="fire")
     with pytest.raises(ValueError, match=r"differs in target_pressure"):
-        generators.soft_quench(sizes, d, seed=7, target_pressure=1e-6, checkpoint=path)
+        generators.soft_quench(sizes, d, seed=7, target_pressure=1e-6, checkpoint=path,
+                               minimiser="fire")
     with pytest.raises(ValueError, match=r"differs in minimiser"):
         generators.soft_quench(sizes, d, seed=7, minimiser="lbfgs", checkpoint=path)
     with pytest.raises(ValueError, match="checkpoint_every"):
-        generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=-1)
+        generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=-1,
+                               minimiser="fire")
