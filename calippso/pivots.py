@@ -30,8 +30,8 @@ cage of a particle that the release left with d contacts closes on it, the pivot
 again with that particle kept in the network, held by its d contacts.
 
 Γ never decreases, so the path can only revisit a network through degenerate pivots (where
-the closing pair already touches); Bland's rule and a record of the networks seen rule that
-out. Every linear solve is one sparse LU (`calippso.sparse_lu`) of the current Jacobian.
+the closing pair already touches); Bland's rule and a record of the networks seen since Γ
+last grew rule that out. Every linear solve is one sparse LU (`calippso.sparse_lu`) of the current Jacobian.
 """
 
 from __future__ import annotations
@@ -299,12 +299,14 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
             return None, failure
         next_vertex, swap, solves = step
         factorizations += solves
+        degenerate = swap.growth <= DEGENERATE_STEP
+        if not degenerate:   # Γ grew: no network seen so far can come back
+            seen.clear()
         digest = _network_digest(next_vertex)
         if digest in seen:
             return None, "the path returned to a network it had left (cycling)"
         seen.add(digest)
         swaps.append(swap)
-        degenerate = swap.growth <= DEGENERATE_STEP
         vertex = next_vertex
 
 
@@ -397,7 +399,7 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
             continue
         separated = _rattlers_out_of_the_way(moved, refined, now_stable)
         if separated is None:   # a cage closed on its rattler before this pair closed
-            rejoined = _rejoin_caged(moved, vertex, i_a, j_a, stable)
+            rejoined = _rejoin_caged(moved, vertex, i_a, j_a, stable, (c_i, c_j))
             if rejoined is not None:
                 joined, pairs, joined_growth = rejoined
                 solves += joined.refinement.factorizations
@@ -428,13 +430,15 @@ def _jacobian_at(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
 
 
 def _rejoin_caged(moved: NeighborSearch, vertex: _Vertex, i_a: np.ndarray, j_a: np.ndarray,
-                  stable: np.ndarray) -> tuple[_Vertex, list[tuple[int, int]], float] | None:
+                  stable: np.ndarray, released: tuple[int, int]
+                  ) -> tuple[_Vertex, list[tuple[int, int]], float] | None:
     """A rattler whose cage closed along the floppy mode joins the network again.
 
     `moved` is the configuration one pair too far along the mode, where a rattler overlaps
     its cage and cannot be moved out. Its d + 1 closest pairs with stable particles there
-    (its cage) close instead: the released network A (one floppy mode) with those d + 1 rows
-    and the rattler's d unknowns is isostatic, and Newton solves it from the vertex.
+    (its cage, never the `released` contact) close instead: the released network A (one
+    floppy mode) with those d + 1 rows and the rattler's d unknowns is isostatic, and Newton
+    solves it from the vertex.
 
     Returns
     -------
@@ -444,7 +448,8 @@ def _rejoin_caged(moved: NeighborSearch, vertex: _Vertex, i_a: np.ndarray, j_a: 
     """
     n, d = moved.positions.shape
     close = moved.pairs_within(float(moved.diameters.max()) * (1.0 + CAGE_GAP))
-    one_rattler = stable[close.i] != stable[close.j]
+    one_rattler = (stable[close.i] != stable[close.j]) & ~(
+        (close.i == released[0]) & (close.j == released[1]))
     overlapping = one_rattler & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
     rattler_of = np.where(stable[close.i], close.j, close.i)
     caged = np.unique(rattler_of[overlapping])

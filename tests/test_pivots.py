@@ -223,6 +223,26 @@ def test_a_degenerate_pivot_gains_nothing_and_the_path_goes_on(source):
     pytest.fail("no degenerate pivot was made")
 
 
+def test_a_rattler_leaves_and_rejoins_the_network(source):
+    """A release leaves a particle with d contacts (a rattler); along the floppy mode its cage
+    closes on it, and it joins the network again with the d + 1 pairs of its cage. The path
+    ends certified, with the source's rattlers (none)."""
+    positions, diameters, box = in_mean_diameters(source.packing)
+    rejoining = []
+    for network in swapped_networks(source, 2, wanted=4):
+        path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0],
+                                         network[:, 1], source.rattlers)
+        assert path is not None, failure
+        if any(swap.rejoined for swap in path.swaps):
+            rejoining.append(path)
+    assert rejoining, "no path made a rattler rejoin"
+    for path in rejoining:
+        assert any(swap.new_rattlers for swap in path.swaps)
+        np.testing.assert_array_equal(path.rattlers, source.rattlers)
+        assert all(swap.growth >= 0 for swap in path.swaps)
+        assert certified_again(path, box)
+
+
 def test_a_network_that_overlaps_another_pair_is_refused(source):
     """The path starts from a feasible vertex only: an overlap at the start is reported."""
     positions, diameters, box = in_mean_diameters(source.packing)
