@@ -31,7 +31,13 @@ again with that particle kept in the network, held by its d contacts.
 
 Γ never decreases, so the path can only revisit a network through degenerate pivots (where
 the closing pair already touches); Bland's rule and a record of the networks seen since Γ
-last grew rule that out. Every linear solve is one sparse LU (`calippso.sparse_lu`) of the current Jacobian.
+last grew rule that out.
+
+One sparse LU (`calippso.sparse_lu`) serves many pivots: a pivot swaps one row of the
+Jacobian, and solves with the swapped matrix use the stored factors and the Woodbury
+identity (`_Basis`), refined iteratively against the exact matrix; the Jacobian is
+factorised again when 40 rows have been swapped, when the refinement does not reach
+round-off, or when rattlers change the unknowns.
 """
 
 from __future__ import annotations
