@@ -60,16 +60,25 @@ def jam_row(quench) -> dict:
 
 
 def run(n: int, d: int, seed: int, target_pressure: float, minimiser: str,
-        jam: bool) -> dict:
-    """One quench of N monodisperse spheres (bidisperse 1:1.4 in d = 2); its table row."""
+        jam: bool, save: Path | None = None) -> dict:
+    """One quench of N monodisperse spheres (bidisperse 1:1.4 in d = 2); its table row. With
+    `save`, the packing and its network go to ``save/quench_d{d}_n{n}_seed{seed}_<minimiser>
+    .npz`` (the layout of bench/scale.py's cache)."""
     sizes = dist.bidisperse(n, 1.4, 0.5, seed) if d == 2 else dist.monodisperse(n)
     wall, cpu = time.perf_counter(), time.process_time()
     result = generators.soft_quench(sizes, d, seed=seed, target_pressure=target_pressure,
                                     minimiser=minimiser)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    if save is not None:
+        save.mkdir(parents=True, exist_ok=True)
+        packing = result.packing
+        np.savez(save / f"quench_d{d}_n{n}_seed{seed}_{result.extra['minimiser']}.npz",
+                 positions=packing.positions, diameters=packing.diameters, box=packing.box,
+                 contacts=result.contacts)
     extra = result.extra
     per_rung = np.diff(np.concatenate([[0], result.history["time"]]))
-    row = {"n": n, "d": d, "seed": seed, "minimiser": minimiser, "phi": result.packing.phi,
+    row = {"n": n, "d": d, "seed": seed, "minimiser": extra["minimiser"],
+           "phi": result.packing.phi,
            "pressure": extra["pressure"], "minimisations": extra["minimisations"],
            "steps": extra["fire_steps"], "steps_per_rung": per_rung.tolist(),
            "slowest_over_median": slowest_over_median(per_rung),
@@ -157,8 +166,9 @@ def main() -> None:
     parser.add_argument("--d", type=int, default=3)
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
     parser.add_argument("--target-pressure", type=float, default=1e-7)
-    parser.add_argument("--minimiser", nargs="+", default=["fire"],
-                        choices=["fire", "lbfgs"], help="run each case with each of these")
+    parser.add_argument("--minimiser", nargs="+", default=["auto"],
+                        choices=["auto", "fire", "lbfgs"],
+                        help="run each case with each of these")
     parser.add_argument("--jam", action="store_true",
                         help="jam each result with its network (network_first='require')")
     parser.add_argument("--kernels", action="store_true",
@@ -166,6 +176,8 @@ def main() -> None:
     parser.add_argument("--rungs", type=int, default=3,
                         help="with --kernels: minimisations before the timing")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
+    parser.add_argument("--save", type=Path, default=None,
+                        help="keep each quench's packing and network in this folder")
     args = parser.parse_args()
 
     if args.kernels:
@@ -190,7 +202,8 @@ def main() -> None:
     for n in args.sizes:
         for seed in args.seeds:
             for minimiser in args.minimiser:
-                rows.append(run(n, args.d, seed, args.target_pressure, minimiser, args.jam))
+                rows.append(run(n, args.d, seed, args.target_pressure, minimiser, args.jam,
+                                args.save))
                 print(format_row(rows[-1]), flush=True)
                 if args.json is not None:
                     args.json.write_text(json.dumps(rows, indent=1))

@@ -148,6 +148,15 @@ def test_deterministic_whatever_the_threads_and_in_input_order(minimiser):
     np.testing.assert_allclose(a.packing.diameters, sizes, rtol=1e-14)
 
 
+@pytest.mark.parametrize("d, expected", [(2, "fire"), (3, "fire"), (4, "lbfgs")])
+def test_auto_minimiser_is_lbfgs_from_d4(d, expected):
+    sizes = dist.monodisperse(64 if d < 4 else 128)
+    auto = generators.soft_quench(sizes, d, seed=1, max_steps=300)
+    chosen = generators.soft_quench(sizes, d, seed=1, max_steps=300, minimiser=expected)
+    assert auto.extra["minimiser"] == chosen.extra["minimiser"] == expected
+    np.testing.assert_array_equal(auto.packing.positions, chosen.packing.positions)
+
+
 def test_a_start_below_jamming_is_compressed():
     result = generators.soft_quench(dist.monodisperse(64), 3, seed=2, phi_start=0.3)
     assert result.history["phi"][0] > 0.55 and 0.6 < result.packing.phi < 0.66
