@@ -101,7 +101,7 @@ def run(n: int, k: int, cache: Path | None) -> dict:
                                      result.rattlers, refined=refined)
     seconds = time.perf_counter() - clock
     row = {"n": n, "swaps": k, "seconds": seconds, "failure": failure}
-    if path is not None:
+    if path is not None and path.jammed:
         end = {tuple(pair) for pair in np.column_stack([path.i, path.j]).tolist()}
         row.update(pivots=path.pivots, degenerate=path.degenerate,
                    factorizations=path.factorizations,

@@ -550,7 +550,7 @@ class _Jammer:
             return certified, False
         path, _ = pivot_to_jamming(self.positions, self.diameters, self.box, network.i,
                                    network.j, network.rattlers, refined=refinement)
-        if path is None:
+        if path is None or not path.jammed:
             return None, False
         self._record_pivots(path)
         pivoted = ContactNetwork(path.i, path.j, np.zeros(path.i.shape[0]), path.rattlers,

@@ -50,6 +50,9 @@ MAX_ROUNDS = 6
 #: a pair that closes on the way to the jamming point is missing), the pairs within this
 #: factor farther from contact are read too, in a round of their own.
 WIDENING = 4.0
+#: Contact pivots taken at most in one round; a network that needs more is chosen again by
+#: the restricted LP at the point they reached (each pivot costs up to a sparse LU).
+ROUND_PIVOTS = 40
 #: A pair of stable particles outside the network may overlap at its jamming point by at most
 #: this relative gap (round-off); the same tolerance as the certificate of `jam`.
 OVERLAP_TOLERANCE = 1e-12
@@ -145,9 +148,12 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         path = None
         if pivots and not refined.positive and not overlap:
             path, failure = pivot_to_jamming(current.positions, current.diameters,
-                                             search.box, i, j, rattlers, refined=refined)
-            if path is not None:
+                                             search.box, i, j, rattlers, refined=refined,
+                                             max_pivots=ROUND_PIVOTS)
+            if path is not None:   # the next round starts where the pivots stopped
                 i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement
+                current = NeighborSearch(refined.positions, refined.diameters, search.box)
+                near = _near_pairs(current, near_gap)
         if refined.positive and not overlap:
             gaps = search.pairs_of(i, j).gaps
             return SettledNetwork(i, j, rattlers, candidate.source, round_number, opened,

@@ -78,6 +78,9 @@ DEGENERATE_STEP = 1e-14
 RATTLER_REACH = 1e-3
 #: A caged rattler's d + 1 closest neighbours are looked for within this relative gap.
 CAGE_GAP = 1e-2
+#: Caged rattlers tried (the deepest overlaps first) when one must rejoin the network: each
+#: try is a Newton solve with new unknowns.
+REJOIN_TRIES = 2
 #: Why a pivot failed when a rattler's cage closed on it (the pivot is then tried again with
 #: the particles that the release leaves with d contacts kept in the network).
 CAGE_CLOSED = "a rattler's cage closed along the floppy mode"
@@ -121,7 +124,8 @@ class Swap:
 
 @dataclass(frozen=True, eq=False)
 class PivotPath:
-    """The end of a pivot path: an isostatic network with positive forces at its Newton point.
+    """The end of a pivot path: an isostatic network at its Newton point, with positive forces
+    (`jammed`), or the last vertex that the path reached before it had to stop.
 
     Attributes
     ----------
@@ -137,6 +141,9 @@ class PivotPath:
         Sparse LU factorisations (directions and Newton solves).
     seconds : float
         Wall time of the path.
+    jammed : bool
+        Every force is positive: the path reached a jamming point. False: the path stopped
+        (why is returned beside it) at this vertex, no lower in Γ than its start.
     """
 
     i: np.ndarray
@@ -146,6 +153,7 @@ class PivotPath:
     swaps: tuple[Swap, ...]
     factorizations: int
     seconds: float
+    jammed: bool = True
 
     @property
     def pivots(self) -> int:
@@ -260,10 +268,11 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     Returns
     -------
     (PivotPath or None, str)
-        The path's end (positive forces, no overlap among stable particles; rattlers may
-        still overlap the moved cages, `calippso.rattlers.separate_rattlers` moves them), or
-        None and why the path cannot continue: the start overlaps another pair, the network
-        is singular, a floppy mode closes no pair, or `max_pivots` were taken.
+        The path's end, with positive forces and no overlap (`PivotPath.jammed`), and "";
+        or where it stopped and why: the network became singular, a floppy mode closes no
+        pair near contact, a rattler's cage closed, or `max_pivots` were taken (a
+        `PivotPath` with ``jammed=False`` once a pivot was made, None when the start itself
+        is refused: another pair overlaps there, or its Newton solution fails).
     """
     began = time.perf_counter()
     i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)
@@ -283,6 +292,13 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     seen = {_network_digest(vertex)}
     factorizations = refined.factorizations
     degenerate = False
+
+    def ended(jammed: bool) -> PivotPath:
+        return PivotPath(vertex.i, vertex.j, ~vertex.stable,
+                         _from_start(vertex.refinement, start_positions, start_diameters, box,
+                                     vertex.stable),
+                         tuple(swaps), factorizations, time.perf_counter() - began, jammed)
+
     while True:
         search = NeighborSearch(vertex.refinement.positions, vertex.refinement.diameters, box)
         overlapping = int(np.sum(_outside_pairs(search, vertex, NEAR_GAP).gaps
@@ -290,19 +306,16 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         if overlapping:
             return None, f"{overlapping} other pair(s) overlap"
         if vertex.refinement.positive:
-            return PivotPath(vertex.i, vertex.j, ~vertex.stable,
-                             _from_start(vertex.refinement, start_positions, start_diameters,
-                                         box, vertex.stable),
-                             tuple(swaps), factorizations, time.perf_counter() - began), ""
+            return ended(True), ""
         if len(swaps) >= max_pivots:
-            return None, f"no jamming point within {max_pivots} pivots"
+            return ended(False), f"no jamming point within {max_pivots} pivots"
         released = _leaving_contact(vertex, bland=degenerate)
         step, failure = _pivot(search, vertex, released)
         if step is None and failure == CAGE_CLOSED:
             # the particles the release left with d contacts stay in the network
             step, failure = _pivot(search, vertex, released, attached=True)
         if step is None:
-            return None, failure
+            return (ended(False) if swaps else None), failure
         next_vertex, swap, solves = step
         factorizations += solves
         degenerate = swap.growth <= DEGENERATE_STEP
@@ -310,7 +323,7 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
             seen.clear()
         digest = _network_digest(next_vertex)
         if digest in seen:
-            return None, "the path returned to a network it had left (cycling)"
+            return ended(False), "the path returned to a network it had left (cycling)"
         seen.add(digest)
         swaps.append(swap)
         vertex = next_vertex
@@ -449,8 +462,8 @@ def _rejoin_caged(moved: NeighborSearch, vertex: _Vertex, i_a: np.ndarray, j_a: 
     Returns
     -------
     (vertex, pairs, growth) or None
-        The new vertex, the cage's pairs, the relative diameter growth; None when no caged
-        rattler gives a vertex with no overlap.
+        The new vertex, the cage's pairs, the relative diameter growth; None when neither of
+        the `REJOIN_TRIES` rattlers that overlap most gives a vertex with no overlap.
     """
     n, d = moved.positions.shape
     close = moved.pairs_within(float(moved.diameters.max()) * (1.0 + CAGE_GAP))
@@ -460,8 +473,8 @@ def _rejoin_caged(moved: NeighborSearch, vertex: _Vertex, i_a: np.ndarray, j_a: 
     rattler_of = np.where(stable[close.i], close.j, close.i)
     caged = np.unique(rattler_of[overlapping])
     positions, diameters = vertex.refinement.positions, vertex.refinement.diameters
-    for rattler in caged[np.argsort([close.gaps[overlapping & (rattler_of == r)].min()
-                                     for r in caged])]:
+    deepest = np.argsort([close.gaps[overlapping & (rattler_of == r)].min() for r in caged])
+    for rattler in caged[deepest][:REJOIN_TRIES]:
         own = np.flatnonzero(one_rattler & (rattler_of == rattler))
         if own.size < d + 1:
             continue

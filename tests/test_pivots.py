@@ -118,7 +118,7 @@ def test_the_path_climbs_to_a_certified_jamming_point(source, k):
                                  ~source.rattlers)
         path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0],
                                          network[:, 1], source.rattlers, refined=start)
-        assert path is not None, failure
+        assert path is not None and path.jammed, failure
         assert path.pivots >= 1 and path.refinement.positive
         assert all(swap.growth >= 0 for swap in path.swaps)   # Γ never decreases
         assert path.refinement.diameters[0] >= start.diameters[0]
@@ -131,7 +131,7 @@ def test_a_single_swap_returns_to_the_source(source):
     network = swapped_networks(source, 1, wanted=1)[0]
     path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
                                      source.rattlers)
-    assert path is not None, failure
+    assert path is not None and path.jammed, failure
     assert same_network(np.column_stack([path.i, path.j]), source.contacts)
     assert np.allclose(path.refinement.diameters / diameters, 1.0, rtol=0, atol=SAME_PHI)
 
@@ -208,7 +208,7 @@ def test_a_degenerate_pivot_gains_nothing_and_the_path_goes_on(source):
                 continue
             path, _ = pivot_to_jamming(vertex.positions, vertex.diameters, box, network[:, 0],
                                        network[:, 1], source.rattlers, refined=vertex)
-            if path is None or not path.degenerate:
+            if path is None or not path.jammed or not path.degenerate:
                 continue
             first = path.swaps[0]
             assert first.closed == pair and first.growth <= DEGENERATE_STEP
@@ -232,7 +232,7 @@ def test_a_rattler_leaves_and_rejoins_the_network(source):
     for network in swapped_networks(source, 2, wanted=4):
         path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0],
                                          network[:, 1], source.rattlers)
-        assert path is not None, failure
+        assert path is not None and path.jammed, failure
         if any(swap.rejoined for swap in path.swaps):
             rejoining.append(path)
     assert rejoining, "no path made a rattler rejoin"
