@@ -15,7 +15,8 @@ exact geometry, one contact at a time, as the simplex method moves from vertex t
    opens, because y_cᵀ (J_C t)_c = −dΓ, and Γ grows.
 3. **Ratio test.** Every pair q of stable particles outside A closes along t at the
    inflation step δ_q = Φ_q / (−∇Φ_q · t), where Φ_q = |r_q|²/σ_q² − Γ. The pair with the
-   smallest step closes first.
+   smallest step closes first; among pairs within round-off of it, the one that closes
+   fastest (Harris's ratio test, for a well-conditioned network).
 4. **Pivot in.** C' = A ∪ {k} is isostatic again. Newton solves it from the predicted point
    x + δ_k t, which makes the linear ratio test exact: the new vertex is accepted when no
    other pair overlaps there and Γ did not decrease; otherwise the next pair of the ratio
@@ -91,6 +92,9 @@ MAX_ROW_SWAPS = 40
 MAX_SMALL_CONDITION = 1e10
 #: Swaps listed by name in `describe_path`.
 LISTED_SWAPS = 5
+#: Harris's ratio test treats pairs within this much of Φ = |r|²/σ² − Γ (about twice the
+#: relative gap) as closing together: well inside the overlap tolerance of the certificate.
+HARRIS_SLACK = 1e-12
 #: Pairs of the ratio test tried in turn, when Newton's vertex for the first one overlaps
 #: another pair (the curve is not the line of the prediction).
 RATIO_CANDIDATES = 4
@@ -386,9 +390,8 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
         if near_gap >= MAX_NEAR_GAP:
             return None, "the floppy mode closes no pair near contact"
         near_gap = min(near_gap * NEAR_GAP_WIDENING, MAX_NEAR_GAP)
-    smallest = steps[order[0]]
-    ties = order[steps[order] <= smallest + DEGENERATE_STEP]
-    candidates = np.concatenate([ties[:1], order[~np.isin(order, ties[:1])]])
+    first = _harris_choice(near, direction, steps, order)
+    candidates = np.concatenate([[first], order[order != first]])
     failure = "Newton found no vertex without overlap along the floppy mode"
     positions = vertex.refinement.positions
     diameters = vertex.refinement.diameters
@@ -507,11 +510,18 @@ def _rattlers_out_of_the_way(search: NeighborSearch, refined: Refinement,
     cage has closed on its rattler."""
     close = search.pairs_near_contact()
     with_rattler = ~stable[close.i] | ~stable[close.j]
-    if not np.any(with_rattler & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)):
+    overlapping = with_rattler & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
+    if not np.any(overlapping):
         return refined
-    separated = separate_rattlers(refined.positions, refined.diameters, search.box, ~stable,
-                                  reach=RATTLER_REACH)
-    return None if separated is None else replace(refined, positions=separated)
+    # the rattlers that overlap move first (a small LP), all rattlers if they cannot
+    involved = np.zeros_like(stable)
+    involved[close.i[overlapping]] = involved[close.j[overlapping]] = True
+    for movable in (involved & ~stable, ~stable):
+        separated = separate_rattlers(refined.positions, refined.diameters, search.box,
+                                      movable, reach=RATTLER_REACH)
+        if separated is not None:
+            return replace(refined, positions=separated)
+    return None
 
 
 def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: np.ndarray,
@@ -581,6 +591,19 @@ def _refined_solve(matrix: sp.csr_matrix, factors: Factors,
             return solution
         solution = solution + factors.solve(remainder)
     return None
+
+
+def _harris_choice(pairs: Pairs, mode: np.ndarray, steps: np.ndarray,
+                   order: np.ndarray) -> int:
+    """The pair that closes first, by Harris's ratio test: among the pairs that close before
+    the smallest step relaxed by `HARRIS_SLACK` (pairs within round-off of contact close
+    together), the one that closes fastest along the mode, so that the new network is the
+    best conditioned; ties to the smallest pair key (`order` is by step, then key)."""
+    rates = -_closing_rates(pairs.subset(order), mode)
+    phi = (pairs.distances[order] / pairs.sigma[order]) ** 2 - 1.0
+    relaxed = float(np.min((np.maximum(phi, 0.0) + HARRIS_SLACK) / rates))
+    within = steps[order] <= relaxed
+    return int(order[np.flatnonzero(within)[np.argmax(rates[within])]])
 
 
 def _closing_rates(pairs: Pairs, mode: np.ndarray) -> np.ndarray:
