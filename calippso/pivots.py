@@ -392,7 +392,6 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
         near_gap = min(near_gap * NEAR_GAP_WIDENING, MAX_NEAR_GAP)
     first = _harris_choice(near, direction, steps, order)
     candidates = np.concatenate([[first], order[order != first]])
-    failure = "Newton found no vertex without overlap along the floppy mode"
     positions = vertex.refinement.positions
     diameters = vertex.refinement.diameters
     next_swapped = tuple(sorted(set(swapped) | {swap_row}))
@@ -428,8 +427,7 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
                 swap = Swap((c_i, c_j), pairs[0], max(joined_growth, 0.0),
                             int(np.count_nonzero(~stable & vertex.stable)), rejoined=1)
                 return (joined, swap, solves), ""
-            failure = CAGE_CLOSED
-            continue
+            return None, CAGE_CLOSED   # a later pair of the ratio test would close it too
         refined = separated
         if refined.factorization is not None:
             next_basis, next_swaps = _Basis(*refined.factorization, stable), ()
@@ -441,7 +439,7 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
         swap = Swap((c_i, c_j), (int(near.i[closing]), int(near.j[closing])), max(growth, 0.0),
                     int(np.count_nonzero(now_rattlers & vertex.stable)))
         return (candidate, swap, solves), ""
-    return None, failure
+    return None, "Newton found no vertex without overlap along the floppy mode"
 
 
 def _jacobian_at(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
