@@ -379,19 +379,10 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
         c_pair = search.pairs_of(np.array([c_i]), np.array([c_j]))
         if _closing_rates(c_pair, direction)[0] <= 0:
             return None, "the released contact does not open along its floppy mode"
-    near_gap = NEAR_GAP
-    while True:
-        near = _outside_pairs(search, _Vertex(i_a, j_a, stable, vertex.refinement), near_gap)
-        steps = _closing_steps(near, direction)
-        order = np.lexsort((near.i * n + near.j, steps))   # smallest step, then Bland
-        order = order[np.isfinite(steps[order])]
-        if order.size and _reach(steps[order[0]], direction, search) < near_gap:
-            break
-        if near_gap >= MAX_NEAR_GAP:
-            return None, "the floppy mode closes no pair near contact"
-        near_gap = min(near_gap * NEAR_GAP_WIDENING, MAX_NEAR_GAP)
-    first = _harris_choice(near, direction, steps, order)
-    candidates = np.concatenate([[first], order[order != first]])
+    ratio_test = _ratio_test(search, _Vertex(i_a, j_a, stable, vertex.refinement), direction)
+    if ratio_test is None:
+        return None, "the floppy mode closes no pair near contact"
+    near, steps, candidates = ratio_test
     positions = vertex.refinement.positions
     diameters = vertex.refinement.diameters
     next_swapped = tuple(sorted(set(swapped) | {swap_row}))
@@ -589,6 +580,36 @@ def _refined_solve(matrix: sp.csr_matrix, factors: Factors,
             return solution
         solution = solution + factors.solve(remainder)
     return None
+
+
+def _ratio_test(search: NeighborSearch, released: _Vertex,
+                mode: np.ndarray) -> tuple[Pairs, np.ndarray, np.ndarray] | None:
+    """The pairs outside the `released` network that close along the floppy mode, in the
+    order to try them (Harris's choice first, `_harris_choice`, then by step and key).
+
+    Pairs within `NEAR_GAP` of contact are read first, farther ones (up to `MAX_NEAR_GAP`)
+    while the first step could close a pair beyond them (`_reach`).
+
+    Returns
+    -------
+    (Pairs, ndarray, ndarray) or None
+        The pairs read, their inflation steps δ_q (+inf for pairs that open), and the
+        indices of the closing pairs in the order to try; None when no pair closes.
+    """
+    n = released.stable.shape[0]
+    near_gap = NEAR_GAP
+    while True:
+        near = _outside_pairs(search, released, near_gap)
+        steps = _closing_steps(near, mode)
+        order = np.lexsort((near.i * n + near.j, steps))   # smallest step, then Bland
+        order = order[np.isfinite(steps[order])]
+        if order.size and _reach(steps[order[0]], mode, search) < near_gap:
+            break
+        if near_gap >= MAX_NEAR_GAP:
+            return None
+        near_gap = min(near_gap * NEAR_GAP_WIDENING, MAX_NEAR_GAP)
+    first = _harris_choice(near, mode, steps, order)
+    return near, steps, np.concatenate([[first], order[order != first]])
 
 
 def _harris_choice(pairs: Pairs, mode: np.ndarray, steps: np.ndarray,
