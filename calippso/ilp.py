@@ -39,7 +39,7 @@ from .network import (ContactNetwork, certify_network, network_balance, network_
                       polished_forces, remove_roundoff_overlaps, touching_network)
 from .network_first import SettledNetwork, settle_candidate
 from .network_guess import Candidate, candidate_networks, check_network_hint
-from .newton import Refinement, refine_isostatic
+from .newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .packing import Packing, wrap
 from .pivots import PivotPath, describe_path, pivot_to_jamming
 from .rattlers import remove_rattlers
@@ -348,9 +348,9 @@ class _Jammer:
         """The network-first stage, then the loop: step bound, LP, update, convergence."""
         settings = self.settings
         if settings.network_first != "off" and not self.history.records:
-            network, reason = self._network_first()
-            if network is not None:
-                return self._finish(network, reason)
+            certified = self._network_first()
+            if certified is not None:
+                return self._finish(*certified)
             if settings.network_first == "require":
                 raise self._fail("network_first='require': no network guessed from the input "
                                  "was certified (" + self.history.notes[-1] + ")")
@@ -446,9 +446,9 @@ class _Jammer:
              "packing": self.packing()}))
 
     # ----------------------------------------------------------------- network first
-    def _network_first(self) -> tuple[ContactNetwork | None, StopReason]:
-        """The input's own contact network, certified by the Newton stage with no LP, or None;
-        and the stop reason (`StopReason.CERTIFIED_PIVOTS` when contact pivots repaired it).
+    def _network_first(self) -> tuple[ContactNetwork, StopReason] | None:
+        """The input's own contact network, certified by the Newton stage with no LP, and the
+        stop reason (`StopReason.CERTIFIED_PIVOTS` when contact pivots repaired it); or None.
 
         Candidates come from `calippso.network_guess` (the hint first, then the gap
         spectrum); at most `MAX_NETWORK_GUESSES` are settled by `calippso.network_first`
@@ -461,7 +461,7 @@ class _Jammer:
         if not candidates:
             self.history.note("network first: the input holds no isostatic contact network "
                               "(not near a jamming point), so the LP loop ran")
-            return None, StopReason.MAX_ITERS
+            return None
         failures = []
         for candidate in candidates:
             settled, failure = settle_candidate(self.search, candidate, self.d,
@@ -494,7 +494,7 @@ class _Jammer:
             start = time.perf_counter()
         self.history.note(f"network first: no guessed network was certified "
                           f"({'; '.join(failures)}), so the LP loop ran")
-        return None, StopReason.MAX_ITERS
+        return None
 
     def _record_pivots(self, path: PivotPath) -> None:
         """History record (stage "pivots") and note of a path of contact pivots that reached
@@ -545,8 +545,12 @@ class _Jammer:
             return self._newton(network), False
         refinement = refine_isostatic(self.positions, self.diameters, self.box, network.i,
                                       network.j, ~network.rattlers)
+        if refinement is None:   # refused as the Newton stage would refuse it, solved once
+            self.failed_networks.add(network_key(network.i, network.j, self.n))
+            self.newton_failure = NEWTON_FAILED
+            return None, False
         certified = self._newton(network, refined=refinement)
-        if certified is not None or refinement is None or refinement.positive:
+        if certified is not None or refinement.positive:
             return certified, False
         path, _ = pivot_to_jamming(self.positions, self.diameters, self.box, network.i,
                                    network.j, network.rattlers, refined=refinement)

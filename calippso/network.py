@@ -22,7 +22,7 @@ import numpy as np
 
 from .contacts import force_balance, isostaticity_gap, polish_forces, positive_self_stress
 from .neighbors import NeighborSearch, Pairs, shrink_to_margin
-from .newton import Refinement, refine_isostatic
+from .newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .rattlers import remove_rattlers, separate_rattlers
 
 __all__ = ["ContactNetwork", "Certified", "RoundoffShrink", "network_key", "network_balance",
@@ -185,7 +185,7 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
         refined = refine_isostatic(positions, diameters, box, network.i, network.j,
                                    ~network.rattlers)
     if refined is None:
-        return None, "Newton did not converge or the Jacobian is singular"
+        return None, NEWTON_FAILED
     order = np.sort(network.i * n + network.j)
     moved = refined.positions
     search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order)

@@ -36,7 +36,7 @@ import numpy as np
 from .contacts import isostaticity_gap, remove_rattlers
 from .neighbors import NeighborSearch, Pairs
 from .network_guess import CANDIDATE_GAP, Candidate
-from .newton import Refinement, refine_isostatic
+from .newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .packing import minimum_image
 from .pivots import PivotPath, pivot_to_jamming
 from .restricted_lp import TOO_FEW, lp_network
@@ -141,7 +141,7 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         if refined is None and direct:
             continue   # the restricted LP chooses from the same pairs
         if refined is None:
-            return None, "Newton did not converge or the Jacobian is singular"
+            return None, NEWTON_FAILED
         current = NeighborSearch(refined.positions, refined.diameters, search.box)
         near = _near_pairs(current, near_gap)
         overlap = _overlaps_outside(near, i, j, rattlers).any()

@@ -33,7 +33,8 @@ import scipy.sparse as sp
 from .packing import minimum_image, wrap
 from .sparse_lu import Factors, factorize
 
-__all__ = ["Refinement", "refine_isostatic", "contact_jacobian", "network_jacobian"]
+__all__ = ["Refinement", "refine_isostatic", "NEWTON_FAILED", "contact_jacobian",
+           "network_jacobian"]
 
 #: Newton stops once the largest correction is below this (mean diameters); quadratic
 #: convergence then leaves an error far below round-off.
@@ -47,6 +48,8 @@ ROUNDOFF_RESIDUAL = 1e-13
 #: Newton gives up when a correction exceeds this (mean diameters): the start was too far.
 MAX_CORRECTION = 0.05
 MAX_ITERATIONS = 30
+#: Why a network has no Newton solution (`refine_isostatic` returned None), for the notes.
+NEWTON_FAILED = "Newton did not converge or the Jacobian is singular"
 #: A chord step (old factors) must shrink the correction at least by this factor; a slower
 #: one factorises the Jacobian again at the current point (a Newton step).
 CHORD_CONTRACTION = 0.25

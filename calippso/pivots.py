@@ -52,8 +52,8 @@ from scipy.linalg import lu_factor, lu_solve
 
 from .neighbors import NeighborSearch, Pairs
 from .network import NEWTON_OVERLAP_TOLERANCE
-from .newton import (MAX_REFINEMENTS, MIN_FORCE_RATIO, REFINEMENT_TOLERANCE, Refinement,
-                     network_jacobian, refine_isostatic)
+from .newton import (MAX_REFINEMENTS, MIN_FORCE_RATIO, NEWTON_FAILED, REFINEMENT_TOLERANCE,
+                     Refinement, network_jacobian, refine_isostatic)
 from .packing import minimum_image
 from .rattlers import remove_rattlers, separate_rattlers
 from .sparse_lu import Factors, factorize
@@ -284,7 +284,7 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     if refined is None:
         refined = refine_isostatic(positions, diameters, box, i, j, stable)
         if refined is None:
-            return None, "Newton did not converge or the Jacobian is singular"
+            return None, NEWTON_FAILED
     start_positions, start_diameters = positions, diameters
     refined = _rattlers_out_of_the_way(
         NeighborSearch(refined.positions, refined.diameters, box), refined, stable)
