@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib
 
+from .boundaries import Boundaries
 from .packing import Packing
 
 __version__ = "0.1.0"
@@ -26,7 +27,7 @@ _LAZY = {
     "report": ("calippso.reporting", "report"),
 }
 
-__all__ = ["Packing", "__version__", *_LAZY]
+__all__ = ["Packing", "Boundaries", "__version__", *_LAZY]
 
 
 def __getattr__(name: str):

@@ -71,7 +71,7 @@ def check_input_overlaps(search: NeighborSearch, tolerance: float) -> None:
     tolerance : float
         Largest accepted overlap, as a relative gap (dimensionless, ≥ 0).
     """
-    check_no_duplicates(search.positions, search.box, SAME_PLACE)
+    check_no_duplicates(search.positions, search.box, SAME_PLACE, search.periodic)
     close = search.pairs_within(float(search.diameters.max()))
     gaps = close.gaps
     if gaps.size and gaps.min() < -tolerance:

@@ -1,6 +1,8 @@
 """Periodic pair search: every pair of particles closer than a cutoff, without any N×N array.
 
-Built on `scipy.spatial.cKDTree` with `boxsize`, which applies the minimum-image convention.
+Built on `scipy.spatial.cKDTree` with `boxsize`, which applies the minimum-image convention
+along the periodic axes (a side of 0 leaves an axis bounded by walls or a cylinder open:
+the optional mask `periodic`, shape (d,), bool, None for every axis periodic).
 Why it exists: it is the one pair search of the numpy code (the jamming loop, the analysis,
 the checks of inputs and of generated packings), which queries each configuration a few
 times. The Numba loops keep their own lists (`generators.cells`, and
@@ -80,28 +82,47 @@ class NeighborSearch:
         Centres (wrapped into the box on construction).
     diameters : ndarray, shape (N,)
     box : ndarray, shape (d,)
+    periodic : ndarray, shape (d,), bool, optional
+        Periodic axes; None: all of them. Positions along the other axes are taken as they
+        are (inside [0, L]).
     """
 
-    def __init__(self, positions: np.ndarray, diameters: np.ndarray, box: np.ndarray):
+    def __init__(self, positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                 periodic: np.ndarray | None = None):
         self.box = np.asarray(box, dtype=np.float64)
-        self.positions = wrap(np.asarray(positions, dtype=np.float64), self.box)
+        self.periodic = None if periodic is None or np.all(periodic) else np.asarray(
+            periodic, dtype=bool)
+        self.positions = wrap(np.asarray(positions, dtype=np.float64), self.box, self.periodic)
         self.diameters = np.asarray(diameters, dtype=np.float64)
         self.d = self.positions.shape[1]
-        self._tree = cKDTree(self.positions, boxsize=self.box)
+        self._tree = cKDTree(self.positions, boxsize=self.periodic_sides)
         self._nearest: tuple[np.ndarray, np.ndarray] | None = None
 
+    @property
+    def periodic_sides(self) -> np.ndarray:
+        """The box sides of the periodic axes and 0 for the others (cKDTree's `boxsize`)."""
+        return self.box if self.periodic is None else np.where(self.periodic, self.box, 0.0)
+
+    @property
+    def half_period(self) -> float:
+        """Half the smallest periodic side (+inf with no periodic axis): the largest cutoff
+        under which the minimum image is unique."""
+        sides = self.box if self.periodic is None else self.box[self.periodic]
+        return 0.5 * float(sides.min()) if sides.size else float("inf")
+
     def pairs_within(self, cutoff: float) -> Pairs:
-        """All pairs whose centre distance is at most `cutoff` (below half the smallest side).
+        """All pairs whose centre distance is at most `cutoff` (below half the smallest
+        periodic side).
 
         Returns
         -------
         Pairs
             Sorted by (i, j), with i < j.
         """
-        if not cutoff < 0.5 * float(np.min(self.box)):
+        if not cutoff < self.half_period:
             raise ValueError(
-                f"pair cutoff {cutoff:g} is not below half the smallest box side "
-                f"{np.min(self.box):g}"
+                f"pair cutoff {cutoff:g} is not below half the smallest periodic box side "
+                f"{2 * self.half_period:g}"
             )
         ij = self._tree.query_pairs(cutoff, output_type="ndarray").astype(np.int64, copy=False)
         if ij.shape[0]:
@@ -123,7 +144,7 @@ class NeighborSearch:
 
     def pairs_of(self, i: np.ndarray, j: np.ndarray) -> Pairs:
         """Geometry of given pairs (index arrays of equal length, i < j)."""
-        vectors = minimum_image(self.positions[i] - self.positions[j], self.box)
+        vectors = minimum_image(self.positions[i] - self.positions[j], self.box, self.periodic)
         distances = np.sqrt(np.einsum("md,md->m", vectors, vectors))
         sigma = 0.5 * (self.diameters[i] + self.diameters[j])
         return Pairs(i, j, vectors, distances, sigma)
@@ -137,7 +158,7 @@ class NeighborSearch:
 
 
 def pairs_within(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                 cutoff: float) -> Pairs:
+                 cutoff: float, periodic: np.ndarray | None = None) -> Pairs:
     """All pairs whose centre-to-centre distance is at most `cutoff`.
 
     Parameters
@@ -146,19 +167,21 @@ def pairs_within(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
     diameters : ndarray, shape (N,)
     box : ndarray, shape (d,)
     cutoff : float
-        Largest centre distance kept, in length units; must be below half the smallest box
-        side so that the minimum image is unique.
+        Largest centre distance kept, in length units; must be below half the smallest
+        periodic box side so that the minimum image is unique.
+    periodic : ndarray, shape (d,), bool, optional
+        Periodic axes; None: all of them.
 
     Returns
     -------
     Pairs
         Sorted by (i, j).
     """
-    return NeighborSearch(positions, diameters, box).pairs_within(cutoff)
+    return NeighborSearch(positions, diameters, box, periodic).pairs_within(cutoff)
 
 
 def close_pairs(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                max_gap: float) -> Pairs:
+                max_gap: float, periodic: np.ndarray | None = None) -> Pairs:
     """Pairs with surface separation |r_ij| − σ_ij ≤ `max_gap` (length units), overlaps included.
 
     Parameters
@@ -168,14 +191,18 @@ def close_pairs(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
     box : ndarray, shape (d,)
     max_gap : float
         Largest surface-to-surface distance kept, in length units (≥ 0).
+    periodic : ndarray, shape (d,), bool, optional
+        Periodic axes; None: all of them.
     """
     reach = float(np.max(diameters)) + max_gap
-    pairs = pairs_within(positions, diameters, box, reach)
+    pairs = pairs_within(positions, diameters, box, reach, periodic)
     return pairs.subset(pairs.distances - pairs.sigma <= max_gap)
 
 
-def min_gap(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray) -> tuple[float, int]:
-    """Smallest relative gap h_ij = |r_ij|/σ_ij − 1 over all touching or overlapping pairs.
+def min_gap(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+            periodic: np.ndarray | None = None) -> tuple[float, int]:
+    """Smallest relative gap h_ij = |r_ij|/σ_ij − 1 over all touching or overlapping pairs
+    (`periodic`: the periodic axes, None for all).
 
     Returns
     -------
@@ -183,7 +210,7 @@ def min_gap(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray) -> tu
         The smallest gap among pairs within contact range (+inf if no pair is that close)
         and the number of overlapping pairs (h < 0).
     """
-    pairs = close_pairs(positions, diameters, box, 0.0)
+    pairs = close_pairs(positions, diameters, box, 0.0, periodic)
     if len(pairs) == 0:
         return float("inf"), 0
     gaps = pairs.gaps
@@ -230,7 +257,8 @@ def shrink_to_margin(gap: float, margin: float = CONTACT_MARGIN) -> float:
     return min(1.0, (1.0 + gap) * (1.0 - margin))
 
 
-def check_no_duplicates(positions: np.ndarray, box: np.ndarray, resolution: float) -> None:
+def check_no_duplicates(positions: np.ndarray, box: np.ndarray, resolution: float,
+                        periodic: np.ndarray | None = None) -> None:
     """ValueError naming two particles whose centres coincide (closer than `resolution`).
 
     An overlapping configuration can be shrunk to contact, or is refused with its own message
@@ -245,9 +273,12 @@ def check_no_duplicates(positions: np.ndarray, box: np.ndarray, resolution: floa
     resolution : float
         Centres closer than this (length units) count as the same place; `SAME_PLACE` ×
         the mean diameter is the rule of `calippso.jam` and the generators.
+    periodic : ndarray, shape (d,), bool, optional
+        Periodic axes; None: all of them.
     """
     box = np.asarray(box, dtype=np.float64)
-    tree = cKDTree(wrap(np.asarray(positions, dtype=np.float64), box), boxsize=box)
+    sides = box if periodic is None else np.where(periodic, box, 0.0)
+    tree = cKDTree(wrap(np.asarray(positions, dtype=np.float64), box, periodic), boxsize=sides)
     pairs = tree.query_pairs(resolution, output_type="ndarray")
     if pairs.shape[0]:
         i, j = sorted(int(k) for k in pairs[np.lexsort(pairs.T[::-1])][0])

@@ -1,5 +1,5 @@
-"""The `Packing` type: hard (hyper)spheres in a periodic box, its packing fraction and the
-d-ball volume.
+"""The `Packing` type: hard (hyper)spheres in a box (periodic, or closed by walls: its
+`calippso.boundaries.Boundaries`), its packing fraction and the d-ball volume.
 
 This module imports numpy only, so that every part of the project (the LP core, the Numba
 generators, the readers) can share it without pulling in anything heavy. The periodic
@@ -14,9 +14,10 @@ from math import gamma, pi
 
 import numpy as np
 
+from .boundaries import Boundaries
 from .periodic import minimum_image, wrap
 
-__all__ = ["Packing", "ball_volume", "minimum_image", "wrap"]
+__all__ = ["Packing", "Boundaries", "ball_volume", "minimum_image", "wrap"]
 
 
 def ball_volume(d: int, radius: np.ndarray | float) -> np.ndarray | float:
@@ -53,23 +54,28 @@ def _as_float_array(value, name: str, ndim: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Packing:
-    """Hard (hyper)spheres in a periodic, rectangular box.
+    """Hard (hyper)spheres in a rectangular box, periodic or closed by walls.
 
     Parameters
     ----------
     positions : array_like, shape (N, d)
-        Particle centres, in length units. Any real values; `wrapped()` maps them into the box.
+        Particle centres, in length units. Along periodic axes any real values (`wrapped()`
+        maps them into the box); along a bounded axis in [0, L_μ], each particle inside the
+        container.
     diameters : array_like, shape (N,)
         Particle diameters σ_i > 0, in length units.
     box : array_like, shape (d,) or scalar
         Box side lengths L_μ > 0 (a scalar means a cubic box).
+    boundaries : Boundaries, optional
+        How each axis is closed (`calippso.boundaries`); default: periodic along every axis.
 
     Raises
     ------
     ValueError
         On wrong shapes, non-finite values, non-positive diameters or box sides, d < 2, an
-        empty packing, or a particle wider than half the smallest box side (the minimum-image
-        convention could then miss contacts).
+        empty packing, a particle wider than half the smallest periodic box side (the
+        minimum-image convention could then miss contacts), boundaries of another dimension,
+        or a particle outside its container (`Boundaries.check`).
 
     Notes
     -----
@@ -80,6 +86,7 @@ class Packing:
     positions: np.ndarray
     diameters: np.ndarray
     box: np.ndarray
+    boundaries: Boundaries | None = None
 
     def __post_init__(self) -> None:
         positions = _as_float_array(self.positions, "positions", 2)
@@ -104,11 +111,24 @@ class Packing:
             raise ValueError(f"box has {box.shape[0]} sides but positions are {d}-dimensional")
         if np.any(box <= 0):
             raise ValueError(f"box sides must be > 0, got {box.tolist()}")
-        if diameters.max() >= 0.5 * box.min():
+        boundaries = (Boundaries.all_periodic(d) if self.boundaries is None
+                      else self.boundaries)
+        if not isinstance(boundaries, Boundaries):
+            raise ValueError(f"boundaries must be a calippso.Boundaries, got "
+                             f"{type(boundaries).__name__}")
+        if boundaries.d != d:
+            raise ValueError(f"boundaries have {boundaries.d} axes but positions are "
+                             f"{d}-dimensional")
+        periodic_box = box[boundaries.periodic]
+        if periodic_box.size and diameters.max() >= 0.5 * periodic_box.min():
             raise ValueError(
                 f"box too small: the largest diameter {diameters.max():g} is not below half the "
-                f"smallest box side {box.min():g}; the periodic images would interact"
+                f"smallest box side {periodic_box.min():g} of a periodic axis; the periodic "
+                f"images would interact"
             )
+        if not boundaries.is_periodic:
+            boundaries.check(positions, diameters, box)
+        object.__setattr__(self, "boundaries", boundaries)
         for name, array in (("positions", positions), ("diameters", diameters), ("box", box)):
             array.setflags(write=False)
             object.__setattr__(self, name, array)
@@ -124,13 +144,20 @@ class Packing:
         return self.positions.shape[1]
 
     @property
+    def periodic(self) -> np.ndarray:
+        """Which axes are periodic, shape (d,), bool (`Boundaries.periodic`)."""
+        return self.boundaries.periodic
+
+    @property
     def volume(self) -> float:
-        """Box volume Π L_μ, in length^d."""
-        return float(np.prod(self.box))
+        """Volume of the container, in length^d: the box Π L_μ, or the cylinder inscribed in
+        it (`Boundaries.volume`)."""
+        return self.boundaries.volume(self.box)
 
     @property
     def phi(self) -> float:
-        """Packing fraction φ = Σ_i V_d(σ_i/2) / Π L_μ (overlaps counted twice)."""
+        """Packing fraction φ = Σ_i V_d(σ_i/2) / the container's volume (overlaps counted
+        twice)."""
         return float(np.sum(ball_volume(self.d, self.diameters / 2)) / self.volume)
 
     @property
@@ -139,17 +166,25 @@ class Packing:
         return float(self.diameters.mean())
 
     def wrapped(self) -> "Packing":
-        """The same packing with every position inside [0, L)."""
-        return Packing(wrap(self.positions, self.box), self.diameters, self.box)
+        """The same packing with every periodic coordinate inside [0, L)."""
+        return Packing(wrap(self.positions, self.box, self.periodic), self.diameters, self.box,
+                       self.boundaries)
+
+    def with_arrays(self, positions: np.ndarray, diameters: np.ndarray,
+                    box: np.ndarray | None = None) -> "Packing":
+        """A packing with new positions and diameters (and box) and these boundaries."""
+        return Packing(positions, diameters, self.box if box is None else box, self.boundaries)
 
     def scaled_to_phi(self, phi: float) -> "Packing":
         """The same centres with all diameters scaled by one factor to reach packing fraction `phi`."""
         if not phi > 0:
             raise ValueError(f"phi must be > 0, got {phi}")
         factor = (phi / self.phi) ** (1.0 / self.d)
-        return Packing(self.positions, self.diameters * factor, self.box)
+        return Packing(self.positions, self.diameters * factor, self.box, self.boundaries)
 
     def __repr__(self) -> str:
         polydisperse = np.ptp(self.diameters) > 1e-12 * self.diameters.max()
         kind = "polydisperse" if polydisperse else "monodisperse"
-        return f"Packing(n={self.n}, d={self.d}, phi={self.phi:.6f}, {kind}, box={self.box.tolist()})"
+        walls = "" if self.boundaries.is_periodic else f", {self.boundaries.describe()}"
+        return (f"Packing(n={self.n}, d={self.d}, phi={self.phi:.6f}, {kind}, "
+                f"box={self.box.tolist()}{walls})")

@@ -1,5 +1,10 @@
 """Periodic geometry of a rectangular box: the minimum image and wrapping into the box.
 
+Axes bounded by walls or a cylinder (`calippso.boundaries`) are not periodic: the numpy
+functions take an optional mask `periodic` (shape (d,), bool; None means every axis is
+periodic, the fast path) and leave the other axes alone. The scalar kernel `image_component`
+does the same when given ``inverse = 0`` for such an axis.
+
 Every use of the periodic boundary in the project comes from here, in two forms:
 
 * numpy functions over arrays, `minimum_image` and `wrap`, for the jamming core, the readers
@@ -18,8 +23,9 @@ import numpy as np
 __all__ = ["minimum_image", "wrap", "image_component", "wrap_coordinate"]
 
 
-def minimum_image(delta: np.ndarray, box: np.ndarray) -> np.ndarray:
-    """Minimum-image convention: r − L·round(r/L), componentwise.
+def minimum_image(delta: np.ndarray, box: np.ndarray,
+                  periodic: np.ndarray | None = None) -> np.ndarray:
+    """Minimum-image convention: r − L·round(r/L), componentwise, along periodic axes.
 
     Parameters
     ----------
@@ -27,17 +33,23 @@ def minimum_image(delta: np.ndarray, box: np.ndarray) -> np.ndarray:
         Raw separation vectors r_i − r_j (length units).
     box : ndarray, shape (d,)
         Box sides L_μ (length units).
+    periodic : ndarray, shape (d,), bool, optional
+        Periodic axes (`calippso.boundaries.Boundaries.periodic`); None: all of them.
 
     Returns
     -------
     ndarray, shape (..., d)
-        Separations with every component in [−L/2, L/2].
+        Separations with every periodic component in [−L/2, L/2]; the other components as
+        given.
     """
-    return delta - box * np.round(delta / box)
+    if periodic is None or periodic.all():
+        return delta - box * np.round(delta / box)
+    return delta - np.where(periodic, box, 0.0) * np.round(delta / box)
 
 
-def wrap(positions: np.ndarray, box: np.ndarray) -> np.ndarray:
-    """Wrap positions into the half-open box [0, L) in every direction.
+def wrap(positions: np.ndarray, box: np.ndarray,
+         periodic: np.ndarray | None = None) -> np.ndarray:
+    """Wrap positions into the half-open box [0, L) along every periodic axis.
 
     `x % L` can round to exactly L for tiny negative x; such values are set to 0 so that the
     result is strictly inside [0, L) (as `scipy.spatial.cKDTree(boxsize=L)` requires).
@@ -48,14 +60,23 @@ def wrap(positions: np.ndarray, box: np.ndarray) -> np.ndarray:
         Centres (length units), any real values.
     box : ndarray, shape (d,)
         Box sides L_μ (length units).
+    periodic : ndarray, shape (d,), bool, optional
+        Periodic axes; None: all of them. The other coordinates are copied unchanged.
 
     Returns
     -------
     ndarray, shape (N, d)
-        A new array with every coordinate in [0, L_μ).
+        A new array with every periodic coordinate in [0, L_μ).
     """
-    wrapped = np.mod(positions, box)
-    wrapped[wrapped >= box] = 0.0
+    if periodic is None or periodic.all():
+        wrapped = np.mod(positions, box)
+        wrapped[wrapped >= box] = 0.0
+        return wrapped
+    wrapped = np.array(positions, dtype=np.float64)
+    axes = np.flatnonzero(periodic)
+    inside = np.mod(wrapped[:, axes], box[axes])
+    inside[inside >= box[axes]] = 0.0
+    wrapped[:, axes] = inside
     return wrapped
 
 
@@ -69,7 +90,8 @@ def image_component(dx: float, length: float, inverse: float) -> float:
     length : float
         Box side L along that axis (length units).
     inverse : float
-        1 / L, computed once by the caller: the loops multiply rather than divide.
+        1 / L, computed once by the caller: the loops multiply rather than divide; 0 for an
+        axis that is not periodic (the component is then returned unchanged).
 
     Returns
     -------
