@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calippso import Packing
+from calippso import Boundaries, Packing
 from calippso.packing import ball_volume
 
 __all__ = ["random_sequential_addition"]
@@ -17,8 +17,12 @@ __all__ = ["random_sequential_addition"]
 MAX_TRIALS = 100_000
 
 
-def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0) -> Packing:
-    """Monodisperse spheres inserted one by one at random free places of a periodic box.
+def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0,
+                               boundaries: Boundaries | None = None,
+                               sides: np.ndarray | None = None,
+                               diameters: np.ndarray | None = None) -> Packing:
+    """Spheres inserted one by one at random free places of a box (periodic, or with flat
+    walls).
 
     The builder of the test configurations (``tests/configurations.py``): with the same seed
     it draws the same trial centres, so a benchmark input is the packing the tests use.
@@ -34,12 +38,19 @@ def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0) -> Pac
         addition limit (about 0.38 in d = 3).
     seed : int
         Seed of the trial centres.
+    boundaries : Boundaries, optional
+        Flat walls (`Boundaries.walls`): along their axes a centre lies in [1/2, L − 1/2].
+        Periodic by default.
+    sides : ndarray, shape (d,), optional
+        Box sides in proportion (scaled to reach `phi`); a cube by default.
+    diameters : ndarray, shape (n,), optional
+        Diameters (scaled to mean 1), inserted largest first; all 1 by default.
 
     Returns
     -------
     Packing
-        n spheres of diameter 1 in a cubic box of side (n V_d(1/2) / phi)^(1/d) (length
-        units of the diameter), no two overlapping.
+        n spheres of mean diameter 1 in a box of volume Σ V_d(σ_i/2) / phi (length units of
+        the mean diameter), no two overlapping.
 
     Raises
     ------
@@ -47,17 +58,22 @@ def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0) -> Pac
         A sphere found no free place in `MAX_TRIALS` trials.
     """
     rng = np.random.default_rng(seed)
-    side = (float(np.sum(ball_volume(d, np.full(n, 0.5)))) / phi) ** (1.0 / d)
-    box = np.full(d, side)
+    shape = np.ones(d) if sides is None else np.asarray(sides, float) / np.prod(sides) ** (1 / d)
+    sizes = np.ones(n) if diameters is None else np.asarray(diameters, float) / np.mean(diameters)
+    box = shape * (float(np.sum(ball_volume(d, sizes / 2))) / phi) ** (1.0 / d)
+    periodic = np.ones(d, bool) if boundaries is None else boundaries.periodic
     placed = np.zeros((0, d))
-    for _ in range(n):
+    placed_sizes = np.zeros(0)
+    for k in np.argsort(-sizes, kind="stable"):
         for _ in range(MAX_TRIALS):
-            trial = rng.random(d) * side
+            draw = rng.random(d)
+            trial = np.where(periodic, draw * box, 0.5 * sizes[k] + draw * (box - sizes[k]))
             delta = placed - trial
-            delta -= box * np.round(delta / box)
-            if np.all(np.einsum("nd,nd->n", delta, delta) > 1.0):
+            delta -= np.where(periodic, box, 0.0) * np.round(delta / box)
+            if np.all(np.einsum("nd,nd->n", delta, delta) > (0.5 * (placed_sizes + sizes[k]))**2):
                 placed = np.vstack([placed, trial])
+                placed_sizes = np.append(placed_sizes, sizes[k])
                 break
         else:
             raise RuntimeError(f"could not place particle {len(placed)} at phi = {phi}")
-    return Packing(placed, np.ones(n), box)
+    return Packing(placed, placed_sizes, box, boundaries)

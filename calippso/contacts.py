@@ -45,22 +45,41 @@ def net_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
 
 
 def force_balance(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
-                  forces: np.ndarray, stable: np.ndarray) -> float:
-    """max over stable particles of |Σ_j f_ij n_ij| / mean force (0 when there is no force)."""
-    if forces.size == 0 or not stable.any():
+                  forces: np.ndarray, stable: np.ndarray,
+                  walls: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> float:
+    """max over stable particles of |Σ_j f_ij n_ij| / mean force (0 when there is no force).
+
+    `walls`, when given, is (particle, wall, forces) of the wall contacts
+    (`calippso.walls`): their forces enter the net force and the mean.
+    """
+    all_forces = forces if walls is None else np.concatenate([forces, walls[2]])
+    if all_forces.size == 0 or not stable.any():
         return 0.0
-    mean = float(forces.mean())
+    mean = float(all_forces.mean())
     if mean <= 0:
         return 0.0
-    total = net_forces(n, i, j, normals, forces)[stable]
+    total = net_forces(n, i, j, normals, forces)
+    if walls is not None:
+        from .walls import wall_net_forces
+
+        total += wall_net_forces(n, normals.shape[1], *walls)
+    total = total[stable]
     return float(np.sqrt(np.einsum("nd,nd->n", total, total)).max() / mean)
 
 
-def isostaticity_gap(n_contacts: int, n_stable: int, d: int) -> int:
-    """N_c − d (N_s − 1) − 1: zero for an isostatic packing (N_c itself when nothing is stable)."""
+def isostaticity_gap(n_contacts: int, n_stable: int, d: int,
+                     zero_modes: int | None = None) -> int:
+    """N_c − (d N_s + 1 − zero modes): zero for an isostatic packing (N_c itself when nothing
+    is stable).
+
+    In a periodic box the zero modes are the d translations, and the count is the familiar
+    N_c − d (N_s − 1) − 1. With walls (`calippso.boundaries.Boundaries.zero_modes`) only the
+    translations along periodic axes are left, and N_c counts the wall contacts too.
+    """
     if n_stable == 0:
         return n_contacts
-    return n_contacts - d * (n_stable - 1) - 1
+    zero_modes = d if zero_modes is None else zero_modes
+    return n_contacts - d * n_stable - 1 + zero_modes
 
 
 def equilibrium_matrix(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray):
@@ -81,7 +100,7 @@ def equilibrium_matrix(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray
 
 
 def polish_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
-                  weights: np.ndarray, forces: np.ndarray) -> np.ndarray:
+                  weights: np.ndarray, forces: np.ndarray, extra=None) -> np.ndarray:
     """Refine contact forces so that every particle is in balance to round-off.
 
     Solves, by sparse least squares started from `forces`, the equilibrium equations
@@ -101,18 +120,24 @@ def polish_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
         Coefficients of the normalisation (2σ_ij²/(2|r_ij|) for f = μ/2).
     forces : ndarray, shape (M,)
         Starting forces (e.g. the duals / 2).
+    extra : scipy.sparse matrix, shape (n·d, K), optional
+        Further columns of the equilibrium matrix (the wall contacts,
+        `calippso.walls.wall_equilibrium_columns`); `weights` and `forces` then have
+        M + K entries, the pairs' first.
 
     Returns
     -------
-    ndarray, shape (M,)
+    ndarray, shape (M,) or (M + K,)
         Polished forces, scaled so that weights·f = 1.
     """
-    from scipy.sparse import csr_matrix, vstack
+    from scipy.sparse import csr_matrix, hstack, vstack
     from scipy.sparse.linalg import lsqr
 
-    m = normals.shape[0]
-    system = vstack([equilibrium_matrix(n, i, j, normals),
-                     csr_matrix(weights[None, :])]).tocsr()
+    m = forces.shape[0]
+    equilibrium = equilibrium_matrix(n, i, j, normals)
+    if extra is not None:
+        equilibrium = hstack([equilibrium, extra])
+    system = vstack([equilibrium, csr_matrix(weights[None, :])]).tocsr()
     target = np.zeros(system.shape[0])
     target[-1] = 1.0
     start = forces / float(weights @ forces)
@@ -123,7 +148,7 @@ def polish_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
 
 
 def positive_self_stress(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
-                         weights: np.ndarray) -> np.ndarray | None:
+                         weights: np.ndarray, extra=None) -> np.ndarray | None:
     """A self-stress of the network with every force positive, as close to uniform as found.
 
     A hyperstatic network (more contacts than the isostatic count) has a space of
@@ -143,21 +168,25 @@ def positive_self_stress(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarr
         Contacts.
     normals : ndarray, shape (M, d)
         Unit vectors n_ij from j to i.
-    weights : ndarray, shape (M,)
+    weights : ndarray, shape (M,) or (M + K,)
         Coefficients of the normalisation Σ weights·f = 1.
+    extra : scipy.sparse matrix, shape (n·d, K), optional
+        Further columns of the equilibrium matrix (wall contacts, as in `polish_forces`).
 
     Returns
     -------
-    ndarray, shape (M,) or None
+    ndarray, shape (M,) or (M + K,), or None
         Forces in balance on every particle, normalised so that weights·f = 1; None when the
         network has no self-stress with all forces positive.
     """
     from scipy.optimize import linprog
     from scipy.sparse import csr_matrix, hstack, identity, vstack
 
-    m = normals.shape[0]
+    m = weights.shape[0]
     equilibrium = equilibrium_matrix(n, i, j, normals)
-    uniform = polish_forces(n, i, j, normals, weights, np.ones(m))
+    if extra is not None:
+        equilibrium = hstack([equilibrium, extra]).tocsr()
+    uniform = polish_forces(n, i, j, normals, weights, np.ones(m), extra)
     balanced = np.abs(equilibrium @ uniform).max() <= SELF_STRESS_TOLERANCE * np.abs(uniform).max()
     if balanced and uniform.min() > 0:
         return uniform
@@ -175,7 +204,7 @@ def positive_self_stress(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarr
                                                 "dual_feasibility_tolerance": 1e-10})
     if solution.status != 0 or solution.x[-1] <= 0:
         return None
-    widest = polish_forces(n, i, j, normals, weights, solution.x[:-1])
+    widest = polish_forces(n, i, j, normals, weights, solution.x[:-1], extra)
     floor = 0.5 * float(widest.min())
     if floor <= 0:
         return None

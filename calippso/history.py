@@ -44,7 +44,7 @@ HISTORY_COLUMNS: dict[str, tuple[object, str]] = {
     "rows": (np.int64, "pair constraints (rows) in the LP"),
     "step_bound": (np.float64, "bound on each displacement component, in mean diameters"),
     "n_contacts": (np.int64, "contacts among non-rattlers after this LP"),
-    "isostaticity_gap": (np.int64, "N_c − d (N_s − 1) − 1 after this LP"),
+    "isostaticity_gap": (np.int64, "N_c − (d N_s + 1 − zero modes) after this LP"),
     "force_balance": (np.float64, "max |Σ f n| / mean force over stable particles"),
     "min_gap": (np.float64, "smallest h_ij = |r_ij|/σ_ij − 1 after the update"),
     "phi": (np.float64, "packing fraction after the update"),
@@ -119,10 +119,14 @@ class History:
         `time.perf_counter()` at the call to `jam`: records' wall times count from it.
     verbose : bool
         Print every record as it is added (a table with a header line).
+    zero_modes : int, optional
+        Rigid motions the container leaves free (`Boundaries.zero_modes`); None: d.
     """
 
-    def __init__(self, d: int, start: float, verbose: bool = False) -> None:
+    def __init__(self, d: int, start: float, verbose: bool = False,
+                 zero_modes: int | None = None) -> None:
         self.d = d
+        self.zero_modes = d if zero_modes is None else zero_modes
         self.start = start
         self.verbose = verbose
         self.records: list[Record] = []
@@ -142,7 +146,7 @@ class History:
             sqrt_gamma_minus_1=float(np.sqrt(1.0 + gamma) - 1.0),
             max_displacement=max_displacement, rows=rows, step_bound=step_bound,
             n_contacts=n_contacts,
-            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d),
+            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d, self.zero_modes),
             force_balance=force_balance, min_gap=min_gap, phi=phi))
 
     def add_newton(self, *, seconds: float, sqrt_gamma_minus_1: float,
@@ -153,7 +157,7 @@ class History:
             stage="newton", wall_time=self.elapsed(), solver_time=seconds,
             sqrt_gamma_minus_1=sqrt_gamma_minus_1, max_displacement=max_displacement,
             rows=n_contacts, step_bound=float("nan"), n_contacts=n_contacts,
-            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d),
+            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d, self.zero_modes),
             force_balance=force_balance, min_gap=min_gap, phi=phi))
 
     def add_pivots(self, *, seconds: float, pivots: int, sqrt_gamma_minus_1: float,
@@ -165,7 +169,7 @@ class History:
             stage="pivots", wall_time=self.elapsed(), solver_time=seconds,
             sqrt_gamma_minus_1=sqrt_gamma_minus_1, max_displacement=max_displacement,
             rows=n_contacts, step_bound=float("nan"), n_contacts=n_contacts,
-            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d),
+            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d, self.zero_modes),
             force_balance=float("nan"), min_gap=min_gap, phi=phi, pivots=pivots))
 
     def add_guess(self, *, seconds: float, rows: int, n_contacts: int, n_stable: int,
@@ -175,7 +179,7 @@ class History:
             stage="guess", wall_time=self.elapsed(), solver_time=seconds,
             sqrt_gamma_minus_1=0.0, max_displacement=0.0, rows=rows,
             step_bound=float("nan"), n_contacts=n_contacts,
-            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d),
+            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d, self.zero_modes),
             force_balance=float("nan"), min_gap=min_gap, phi=phi))
 
     def correct_min_gap(self, min_gap: float) -> None:

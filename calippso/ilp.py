@@ -33,10 +33,11 @@ from .contacts import isostaticity_gap
 from .errors import JammingError
 from .history import HISTORY_COLUMNS, History, Record, StopReason, status_sentence
 from .inputs import as_packing, check_enough_particles, check_input_overlaps
-from .lp import build_lp, largest_safe_step, select_pairs
+from .lp import build_lp, largest_safe_step, select_pairs, select_walls
 from .neighbors import NeighborSearch, Pairs
 from .network import (ContactNetwork, certify_network, network_balance, network_key,
-                      polished_forces, remove_roundoff_overlaps, touching_network)
+                      polished_forces, remove_roundoff_overlaps, touching_network,
+                      walls_near_contact)
 from .network_first import SettledNetwork, settle_candidate
 from .network_guess import Candidate, candidate_networks, check_network_hint
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
@@ -48,6 +49,7 @@ from .settings import JamSettings
 from .solvers import Basis
 from .solvers.policy import LPAttempt, LPFailed, SolverPolicy, next_warm_start
 from .step import Step, analyse, at_bound
+from .walls import WallRows, out_of_layer_moves, wall_rows_of
 
 __all__ = ["jam", "initial_step_bound", "next_step_bound"]
 
@@ -72,6 +74,17 @@ INSIDE_BOUND_FRACTION = 0.5
 #: Candidate networks the network-first stage settles at most (each costs a few sparse
 #: factorisations).
 MAX_NETWORK_GUESSES = 3
+#: Largest move off a wall (mean diameters) after an LP that converged hypostatic between
+#: walls, also the next LP's bound (`_Jammer._kick_off_walls`); how many times that is done.
+WALL_KICK_STEP = 1e-3
+MAX_WALL_KICKS = 20
+#: ... done also when an LP between walls grows √Γ by less than this with a hypostatic
+#: network: the LPs then creep along such a mode by second-order steps.
+WALL_KICK_GROWTH = 1e-9
+#: Pairs closer than this relative gap touch, and those with |n_μ| below the next value
+#: lie in a layer parallel to the walls of axis μ (`calippso.walls.out_of_layer_moves`).
+WALL_KICK_TOUCHING = 1e-6
+WALL_KICK_COPLANAR = 1e-6
 #: Settings that do not change the sequence of LPs, left out of a checkpoint's signature.
 CHECKPOINT_FREE_SETTINGS = ("verbose", "max_iters")
 #: No pairs: the LP's forced rows at the start.
@@ -227,25 +240,37 @@ class _Jammer:
                  checkpoint: str | os.PathLike | None = None, start: float | None = None,
                  hint: np.ndarray | None = None,
                  on_lp: Callable[[LPAttempt], None] | None = None):
+        self.boundaries = packing.boundaries
+        if self.boundaries.cylinder_axes:
+            raise ValueError(f"jam handles periodic boxes and flat walls; a cylinder "
+                             f"({self.boundaries.describe()}) cannot be jammed yet")
+        self.wall_axes = self.boundaries.wall_axes
+        # None in a periodic box: the geometry's fast path
+        self.periodic = None if self.boundaries.is_periodic else self.boundaries.periodic
+        self.history = History(packing.d, time.perf_counter() if start is None else start,
+                               verbose=settings.verbose, zero_modes=self.boundaries.zero_modes)
+        if self.wall_axes:
+            settings, hint = self._without_network_stages(settings, hint)
         self.settings = settings
         self.hint = hint
         self.callback = callback
-        self.history = History(packing.d, time.perf_counter() if start is None else start,
-                               verbose=settings.verbose)
         self.policy = SolverPolicy(settings, on_lp)
         self.scale = packing.mean_diameter
         self.n, self.d = packing.n, packing.d
         self.box = packing.box / self.scale
-        self.positions = wrap(packing.positions / self.scale, self.box)
+        self.positions = wrap(packing.positions / self.scale, self.box, self.periodic)
         self.diameters = packing.diameters / self.scale
-        self.fixed = np.zeros(self.n, dtype=bool)
+        # the pin removes the translations along the periodic axes only: a wall holds the rest
+        self.fixed = np.zeros((self.n, self.d), dtype=bool)
         if settings.pin:
-            self.fixed[0] = True
+            self.fixed[0] = self.boundaries.periodic
+        self.forced_walls = NO_PAIRS      # (particle, wall) rows forced into every LP
+        self.wall_kicks = 0               # converged LPs left hypostatic between walls
         self.failed_networks: set[str] = set()
         self.newton_failure = ""          # why the last Newton stage was not certified
         self.forced = NO_PAIRS
         self.basis: Basis | None = None   # warm start of the next LP
-        self.search = NeighborSearch(self.positions, self.diameters, self.box)
+        self.search = self._search(self.positions, self.diameters)
         check_input_overlaps(self.search, settings.overlap_tolerance)
         self.input_median_gap = median_gap(self.search)
         self.step = initial_step_bound(self.input_median_gap, settings)
@@ -260,9 +285,11 @@ class _Jammer:
         if state is None:
             return
         self.positions, self.diameters = state["positions"], state["diameters"]
-        self.search = NeighborSearch(self.positions, self.diameters, self.box)
+        self.search = self._search(self.positions, self.diameters)
         self.step = float(state["step"])
         self.forced = state["forced"].astype(np.int64).reshape(-1, 2)
+        if "forced_walls" in state:
+            self.forced_walls = state["forced_walls"].astype(np.int64).reshape(-1, 2)
         self.failed_networks = set(state["failed_networks"].tolist())
         self.history.restore({name: state[f"history_{name}"] for name in HISTORY_COLUMNS},
                              state["notes"].tolist())
@@ -276,6 +303,7 @@ class _Jammer:
         history = self.history.to_array()
         state = {"positions": self.positions, "diameters": self.diameters, "step": self.step,
                  "forced": self.forced,
+                 **({"forced_walls": self.forced_walls} if self.wall_axes else {}),
                  "failed_networks": np.array(sorted(self.failed_networks), dtype=str),
                  "notes": np.array(self.history.notes, dtype=str),
                  **{f"history_{name}": history[name] for name in HISTORY_COLUMNS}}
@@ -289,7 +317,49 @@ class _Jammer:
     def packing(self) -> Packing:
         """The current configuration in the caller's units."""
         return Packing(self.positions * self.scale, self.diameters * self.scale,
-                       self.box * self.scale)
+                       self.box * self.scale, self.boundaries)
+
+    def _search(self, positions: np.ndarray, diameters: np.ndarray) -> NeighborSearch:
+        """The neighbour search of a configuration in this box (loop units)."""
+        return NeighborSearch(positions, diameters, self.box, self.periodic)
+
+    def _without_network_stages(self, settings: JamSettings,
+                                hint: np.ndarray | None) -> tuple[JamSettings, None]:
+        """Settings for a box with walls: the stages that do not know walls yet (network
+        first, Newton, contact pivots) are switched off, each said in a note; the LP loop,
+        whose rows and forces include the walls, does the whole run."""
+        if settings.network_first == "require":
+            raise ValueError("network_first='require' cannot be met with walls: the "
+                             "network-first stage does not handle wall contacts yet")
+        skipped = [name for name, on in (("network first", settings.network_first != "off"),
+                                         ("Newton", settings.newton),
+                                         ("contact pivots", settings.pivots != "off"))
+                   if on]
+        if skipped:
+            self.history.note(f"{', '.join(skipped)} skipped: not wall-aware yet "
+                              f"({self.boundaries.describe()}); LPs only")
+        if hint is not None:
+            self.history.note("the network hint was not used: the network-first stage does "
+                              "not handle walls yet")
+        return settings.with_changes(network_first="off", newton=False, pivots="off"), None
+
+    def _walls(self, search: NeighborSearch, step: float, stable: np.ndarray | None,
+               forced: np.ndarray) -> WallRows:
+        """The LP's wall rows: the safe selection at this bound, the forced ones, and only
+        those of `stable` particles when given."""
+        walls = select_walls(search, step, self.wall_axes)
+        if forced.shape[0]:
+            n_walls = 2 * self.d
+            extra = forced[~np.isin(forced[:, 0] * n_walls + forced[:, 1],
+                                    walls.keys(n_walls))]
+            if extra.shape[0]:
+                more = wall_rows_of(search.positions, search.diameters, search.box,
+                                    extra[:, 0], extra[:, 1])
+                walls = WallRows(*(np.concatenate([getattr(walls, name), getattr(more, name)])
+                                   for name in ("particle", "wall", "distances", "sigma")))
+        if stable is not None:
+            walls = walls.subset(stable[walls.particle])
+        return walls
 
     def _fail(self, message: str) -> JammingError:
         return JammingError(message, packing=self.packing(), history=self.history.to_array())
@@ -320,7 +390,9 @@ class _Jammer:
         try:
             solved = self.policy.solve(
                 lambda bound: build_lp(self._pairs(search, bound, stable, forced), self.n,
-                                       self.d, bound, fixed),
+                                       self.d, bound, fixed,
+                                       self._walls(search, bound, stable, self.forced_walls),
+                                       self.boundaries.zero_modes),
                 step, self.basis, lp_number)
         except LPFailed as error:
             raise self._fail(str(error)) from None
@@ -363,10 +435,13 @@ class _Jammer:
                 raise self._fail("box too small: even a vanishing step would need pairs "
                                  "beyond half the box side")
             taken = self._solve(self.search, bound, self.fixed, forced=self.forced)
-            positions = wrap(self.positions + taken.displacements, self.box)
+            positions = wrap(self.positions + taken.displacements, self.box, self.periodic)
             diameters = self.diameters * np.sqrt(1.0 + taken.solution.gamma)
-            search = NeighborSearch(positions, diameters, self.box)
+            search = self._search(positions, diameters)
             close = search.pairs_near_contact()
+            if self._walls_outside(search, taken):
+                self.policy.discard(taken.solution.seconds)
+                continue
             keys = taken.lp.pairs.i * self.n + taken.lp.pairs.j
             outside = (close.gaps < 0) & ~np.isin(close.i * self.n + close.j, keys)
             if outside.any():
@@ -380,7 +455,8 @@ class _Jammer:
                 self.policy.discard(taken.solution.seconds)
                 continue
             self.positions, self.diameters, self.search = positions, diameters, search
-            record = self._record(taken, close.smallest_gap())
+            record = self._record(taken, min(close.smallest_gap(), walls_near_contact(
+                search, self.wall_axes).smallest_gap()))
             network = taken.network()
             converged = (record.sqrt_gamma_minus_1 < settings.tol_gamma
                          and taken.max_displacement < settings.tol_s
@@ -395,6 +471,10 @@ class _Jammer:
                 reason = StopReason.STOPPED_BY_CALLBACK
                 break
             self._check_box_size(taken)
+            if ((converged or record.sqrt_gamma_minus_1 < WALL_KICK_GROWTH)
+                    and self._kick_off_walls(record, network)):
+                self._save_state()
+                continue
             if converged:
                 reason = StopReason.CONVERGED
                 break
@@ -423,6 +503,55 @@ class _Jammer:
             raise self._fail(f"no LP was solved (max_iters = {settings.max_iters})")
         return self._finish(network, reason)
 
+    def _kick_off_walls(self, record: Record, network: ContactNetwork) -> bool:
+        """Whether a converged LP between walls was only a first-order stationary point, and
+        the loop goes on from moved positions.
+
+        Equal spheres at a flat wall form layers with centres in one plane. A particle whose
+        contacts all lie in such a plane can leave it at no first-order cost, so the LP
+        converges (or creeps by second-order steps) with a hypostatic network: a floppy
+        mode. Leaving opens its contacts at second order, and Γ can then grow: not a jamming
+        point. Such particles are moved out of their layer by up to `WALL_KICK_STEP` without
+        any overlap (`calippso.walls.out_of_layer_moves`) and the loop goes on, at most
+        `MAX_WALL_KICKS` times; each time adds a note.
+        """
+        if (not self.wall_axes or record.isostaticity_gap >= 0
+                or self.wall_kicks >= MAX_WALL_KICKS):
+            return False
+        moved = out_of_layer_moves(self.search, self.wall_axes, network.wall_particle,
+                                   WALL_KICK_STEP, WALL_KICK_TOUCHING, WALL_KICK_COPLANAR)
+        if moved is None:
+            return False
+        self.wall_kicks += 1
+        what = ("converged" if record.sqrt_gamma_minus_1 < self.settings.tol_gamma
+                else f"grew sqrt(Gamma) by {record.sqrt_gamma_minus_1:.1e}")
+        count = int(np.count_nonzero(np.any(moved != self.search.positions, axis=1)))
+        self.history.note(f"LP {self.history.lps_solved} {what} with a hypostatic network "
+                          f"between walls (gap {record.isostaticity_gap:+d}): {count} "
+                          f"particle(s) held only within a layer parallel to a wall moved "
+                          f"out of it, and the loop went on")
+        self.positions = moved
+        self.search = self._search(moved, self.diameters)
+        self.step, self.basis = WALL_KICK_STEP, None
+        return True
+
+    def _walls_outside(self, search: NeighborSearch, taken: Step) -> bool:
+        """Whether a particle crossed a wall whose row was left out of the LP (round-off at
+        the edge of the safe selection); such rows are then forced into every LP, with a
+        note, and the LP is solved again."""
+        if not self.wall_axes:
+            return False
+        near = walls_near_contact(search, self.wall_axes)
+        n_walls = 2 * self.d
+        outside = (near.gaps < 0) & ~np.isin(near.keys(n_walls), taken.lp.walls.keys(n_walls))
+        if not outside.any():
+            return False
+        new = np.column_stack([near.particle[outside], near.wall[outside]])
+        self.forced_walls = np.unique(np.concatenate([self.forced_walls, new]), axis=0)
+        self.history.note(f"{int(outside.sum())} particle(s) crossed a wall left out of LP "
+                          f"{self.history.lps_solved + 1}; re-solved with those walls")
+        return True
+
     def _check_box_size(self, taken: Step) -> None:
         """Stop with an error when the particles grow to half the box side without jamming.
 
@@ -431,7 +560,7 @@ class _Jammer:
         high d) can leave every particle a rattler until the diameters approach that limit;
         the loop would then creep towards it with ever smaller steps.
         """
-        half = 0.5 * float(self.box.min())
+        half = self.search.half_period
         largest = float(self.diameters.max())
         if taken.stable_fraction == 0 and largest >= (1.0 - SMALL_BOX_MARGIN) * half:
             raise self._fail(
@@ -622,27 +751,33 @@ class _Jammer:
                 and not network.rattlers.all()):
             network, balance = self._cleanup(network)
         if converged:
-            network, balance, note = touching_network(self.search, network, balance, self.d,
-                                                      settings.balance_tolerance)
+            network, balance, note = touching_network(
+                self.search, network, balance, self.d, settings.balance_tolerance,
+                self.wall_axes, self.boundaries.zero_modes)
             self._note(note)
-        forces = network.forces
-        if balance > settings.balance_tolerance and forces.size:
-            forces, balance, note = polished_forces(self.search, network, balance)
+        if balance > settings.balance_tolerance and network.n_contacts:
+            network, balance, note = polished_forces(self.search, network, balance)
             self._note(note)
         contacts = np.column_stack([network.i, network.j]).astype(np.int64)
         order = np.lexsort((contacts[:, 1], contacts[:, 0]))
-        forces = forces[order]
-        mean_force = forces.mean() if forces.size else 1.0
-        shrink = remove_roundoff_overlaps(self.search)
+        forces = network.forces[order]
+        wall_contacts = np.column_stack([network.wall_particle, network.wall]).astype(np.int64)
+        wall_order = np.lexsort((wall_contacts[:, 0], wall_contacts[:, 1]))
+        wall_forces = network.wall_forces[wall_order]
+        every_force = np.concatenate([forces, wall_forces])
+        mean_force = every_force.mean() if every_force.size else 1.0
+        shrink = remove_roundoff_overlaps(self.search, self.wall_axes)
         if shrink is not None:
             self.diameters = self.diameters * shrink.factor
             self.search = shrink.search
             self.history.note(shrink.note)
             self.history.correct_min_gap(shrink.min_gap)
-        gap = isostaticity_gap(contacts.shape[0], network.n_stable, self.d)
+        gap = isostaticity_gap(network.n_contacts, network.n_stable, self.d,
+                               self.boundaries.zero_modes)
         notes = self._final_notes(reason)
         return JammingResult(
             packing=self.packing(), contacts=contacts[order], forces=forces / mean_force,
+            wall_contacts=wall_contacts[wall_order], wall_forces=wall_forces / mean_force,
             rattlers=network.rattlers.copy(), converged=converged,
             status=status_sentence(reason, self.history.lps_solved, self.history.last_step(),
                                    network.n_stable, gap, notes),
@@ -655,9 +790,9 @@ class _Jammer:
         """Contacts and forces from an LP at the final positions, rattlers and one stable
         particle fixed, bound `CLEANUP_STEP`: its network and force balance."""
         stable = ~network.rattlers
-        fixed = network.rattlers.copy()
+        fixed = np.repeat(network.rattlers[:, None], self.d, axis=1)
         if stable.any():
-            fixed[np.flatnonzero(stable)[0]] = True
+            fixed[np.flatnonzero(stable)[0]] |= self.boundaries.periodic
         cleanup = self._solve(self.search, CLEANUP_STEP, fixed, stable=stable)
         self._record(cleanup, self.history.last.min_gap, stage="cleanup")
         if cleanup.max_displacement > 0.5 * CLEANUP_STEP:
@@ -690,4 +825,7 @@ def checkpoint_signature(packing: Packing, settings: JamSettings) -> dict:
     the sequence of LPs (all but `CHECKPOINT_FREE_SETTINGS`)."""
     options = {name: value for name, value in asdict(settings).items()
                if name not in CHECKPOINT_FREE_SETTINGS}
-    return {"input": digest(packing.positions, packing.diameters, packing.box), **options}
+    signature = {"input": digest(packing.positions, packing.diameters, packing.box), **options}
+    if not packing.boundaries.is_periodic:
+        signature["boundaries"] = str(packing.boundaries)
+    return signature

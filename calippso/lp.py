@@ -14,6 +14,10 @@ Which rows are kept. Any pair p bounds the LP optimum: Γ σ_p² ≤ |r_p|² + 2
 (|r_p| + 2√d b)², so √Γ ≤ g := min_p (|r_p| + 2√d b)/σ_p. A pair left out with
 |r_ij| − 2√d b > g σ_ij can then never come into contact during the step, in exact arithmetic.
 Only pairs within g σ_ij + 2√d b are kept; the loop still checks every pair after each update.
+
+Flat walls (`calippso.walls`) add one row per particle within g σ_i/2 + b of a wall, of the
+same form with the wall as a partner that does not move: the displacement towards a wall is
+one component, at most b.
 """
 
 from __future__ import annotations
@@ -24,8 +28,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from .neighbors import NeighborSearch, Pairs
+from .walls import EMPTY_WALLS, WallRows, wall_rows_within
 
-__all__ = ["LinearProgram", "select_pairs", "build_lp"]
+__all__ = ["LinearProgram", "select_pairs", "select_walls", "build_lp"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,8 +39,9 @@ class LinearProgram:
 
     Attributes
     ----------
-    matrix : scipy.sparse.csc_matrix, shape (M, N d + 1)
-        One row per kept pair; columns are s_iμ at i d + μ, then γ.
+    matrix : scipy.sparse.csc_matrix, shape (M + K, N d + 1)
+        One row per kept pair, then one per kept particle–wall pair; columns are s_iμ at
+        i d + μ, then γ.
     row_lower : ndarray, shape (M,)
     col_lower, col_upper : ndarray, shape (N d + 1,)
     pairs : Pairs
@@ -46,6 +52,11 @@ class LinearProgram:
         Dimension.
     step_bound : float
         Bound on each displacement component (mean diameters).
+    walls : WallRows
+        The particle–wall pair behind every row after the pairs', in row order.
+    zero_modes : int
+        Rigid motions the container leaves free (d in a periodic box): the isostatic count
+        is d N_s + 1 − zero_modes.
     """
 
     matrix: sp.csc_matrix
@@ -56,10 +67,12 @@ class LinearProgram:
     n: int
     d: int
     step_bound: float
+    walls: WallRows
+    zero_modes: int
 
     @property
     def n_rows(self) -> int:
-        """Number of pair constraints M."""
+        """Number of constraints M + K."""
         return self.matrix.shape[0]
 
     @property
@@ -69,8 +82,12 @@ class LinearProgram:
 
     @property
     def gamma_coefficients(self) -> np.ndarray:
-        """σ_ij²/(2|r_ij|) for every row: the (negated) coefficient of γ, shape (M,)."""
-        return self.pairs.sigma**2 / (2.0 * self.pairs.distances)
+        """σ_ij²/(2|r_ij|) for every row (σ_w²/(2δ) for a wall row): the (negated)
+        coefficient of γ, shape (M + K,)."""
+        coefficients = self.pairs.sigma**2 / (2.0 * self.pairs.distances)
+        if not len(self.walls):
+            return coefficients
+        return np.concatenate([coefficients, self.walls.sigma**2 / (2.0 * self.walls.distances)])
 
 
 def growth_bound(search: NeighborSearch, step_bound: float) -> float:
@@ -103,12 +120,33 @@ def select_pairs(search: NeighborSearch, step_bound: float) -> Pairs:
     return pairs.subset(pairs.distances <= g * pairs.sigma + reach)
 
 
+def select_walls(search: NeighborSearch, step_bound: float,
+                 wall_axes: tuple[int, ...]) -> WallRows:
+    """Every particle–wall pair that could come into contact within a step bounded by
+    `step_bound`: δ ≤ g σ_i/2 + b, with g the bound on √Γ of `growth_bound`.
+
+    Parameters
+    ----------
+    search : NeighborSearch
+        Current positions and diameters (mean diameter 1).
+    step_bound : float
+        Bound b on each displacement component.
+    wall_axes : tuple of int
+        Axes with flat walls.
+    """
+    if not wall_axes:
+        return EMPTY_WALLS
+    return wall_rows_within(search.positions, search.diameters, search.box, wall_axes,
+                            step_bound, growth_bound(search, step_bound))
+
+
 def largest_safe_step(search: NeighborSearch, step_bound: float) -> float:
-    """The largest bound ≤ `step_bound` whose row selection stays below half the smallest box side.
+    """The largest bound ≤ `step_bound` whose row selection stays below half the smallest
+    periodic box side.
 
     Returns 0.0 when even a vanishing step would need pairs beyond half the box.
     """
-    half = 0.5 * float(search.box.min())
+    half = search.half_period
     root_d = np.sqrt(search.d)
     for _ in range(60):
         g = growth_bound(search, step_bound)
@@ -118,7 +156,8 @@ def largest_safe_step(search: NeighborSearch, step_bound: float) -> float:
     return 0.0
 
 
-def build_lp(pairs: Pairs, n: int, d: int, step_bound: float, fixed: np.ndarray) -> LinearProgram:
+def build_lp(pairs: Pairs, n: int, d: int, step_bound: float, fixed: np.ndarray,
+             walls: WallRows = EMPTY_WALLS, zero_modes: int | None = None) -> LinearProgram:
     """Assemble the sparse LP for the given rows.
 
     Parameters
@@ -129,8 +168,13 @@ def build_lp(pairs: Pairs, n: int, d: int, step_bound: float, fixed: np.ndarray)
         Particles and dimension.
     step_bound : float
         Bound b on every displacement component.
-    fixed : ndarray, shape (N,), bool
-        Particles whose displacement is fixed to zero (the pin; rattlers in a clean-up LP).
+    fixed : ndarray, shape (N,) or (N, d), bool
+        Particles (or displacement components) fixed to zero: the pin, along the periodic
+        axes only in a box with walls; rattlers in a clean-up LP.
+    walls : WallRows
+        Particle–wall rows to keep (from `select_walls`), after the pairs'.
+    zero_modes : int, optional
+        Rigid motions the container leaves free; None: d (a periodic box).
     """
     m = len(pairs)
     normals = pairs.vectors / pairs.distances[:, None]
@@ -141,13 +185,25 @@ def build_lp(pairs: Pairs, n: int, d: int, step_bound: float, fixed: np.ndarray)
     gamma_coefficient = pairs.sigma**2 / (2.0 * pairs.distances)
     values = np.concatenate([normals, -normals, -gamma_coefficient[:, None]], axis=1)
     rows = np.repeat(np.arange(m), 2 * d + 1)
-    matrix = sp.csc_matrix((values.ravel(), (rows, columns.ravel())), shape=(m, n * d + 1))
     row_lower = -(pairs.distances - pairs.sigma) * (pairs.distances + pairs.sigma) / (
         2.0 * pairs.distances)
+    values, rows, columns = values.ravel(), rows, columns.ravel()
+    if len(walls):
+        k = len(walls)
+        wall_rows = m + np.arange(k)
+        values = np.concatenate([values, walls.sign,
+                                 -walls.sigma**2 / (2.0 * walls.distances)])
+        rows = np.concatenate([rows, wall_rows, wall_rows])
+        columns = np.concatenate([columns, walls.particle * d + walls.axis,
+                                  np.full(k, n * d)])
+        row_lower = np.concatenate([row_lower, -(walls.distances - walls.sigma) * (
+            walls.distances + walls.sigma) / (2.0 * walls.distances)])
+    matrix = sp.csc_matrix((values, (rows, columns)), shape=(m + len(walls), n * d + 1))
     col_lower = np.full(n * d + 1, -step_bound)
     col_upper = np.full(n * d + 1, step_bound)
-    fixed_columns = (np.flatnonzero(fixed)[:, None] * d + coordinate).ravel()
+    fixed_columns = np.flatnonzero(np.broadcast_to(fixed.reshape(n, -1), (n, d)))
     col_lower[fixed_columns] = 0.0
     col_upper[fixed_columns] = 0.0
     col_lower[-1], col_upper[-1] = -1.0, np.inf
-    return LinearProgram(matrix, row_lower, col_lower, col_upper, pairs, n, d, step_bound)
+    return LinearProgram(matrix, row_lower, col_lower, col_upper, pairs, n, d, step_bound,
+                         walls, d if zero_modes is None else zero_modes)

@@ -16,18 +16,20 @@ repair something they also return the note that says so, for the run's status.
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .contacts import force_balance, isostaticity_gap, polish_forces, positive_self_stress
-from .neighbors import NeighborSearch, Pairs, shrink_to_margin
+from .neighbors import NEAR_CONTACT_SLACK, NeighborSearch, Pairs, shrink_to_margin
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .rattlers import remove_rattlers, separate_rattlers
+from .walls import WallRows, wall_equilibrium_columns, wall_rows_of, wall_rows_within
 
 __all__ = ["ContactNetwork", "Certified", "RoundoffShrink", "network_key", "network_balance",
            "overlaps_outside", "certify_network", "touching_network", "polished_forces",
-           "remove_roundoff_overlaps", "NEWTON_OVERLAP_TOLERANCE", "GEOMETRIC_CONTACT_GAP",
+           "remove_roundoff_overlaps", "walls_near_contact", "NEWTON_OVERLAP_TOLERANCE",
+           "GEOMETRIC_CONTACT_GAP",
            "ROUNDOFF_SHRINK_MARGIN"]
 
 #: A pair outside the contact network may overlap by at most this relative gap at a Newton
@@ -60,6 +62,11 @@ class ContactNetwork:
         The backend whose duals gave the network ("none" for one that no LP gave).
     from_lp : bool
         The network and forces are an LP's duals (a force clean-up LP can then repair them).
+    wall_particle, wall : ndarray, shape (K,), int64
+        The contacts with flat walls: particle and wall (`calippso.walls`); empty in a
+        periodic box.
+    wall_forces : ndarray, shape (K,)
+        Their force magnitudes, in the units of `forces`.
     """
 
     i: np.ndarray
@@ -69,11 +76,21 @@ class ContactNetwork:
     normalization: float
     solver: str
     from_lp: bool
+    wall_particle: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    wall: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    wall_forces: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n_contacts(self) -> int:
-        """Number of contacts M."""
-        return int(self.i.shape[0])
+        """Number of contacts N_c: between particles (M) and with walls (K)."""
+        return int(self.i.shape[0] + self.wall_particle.shape[0])
+
+    @property
+    def walls(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """(particle, wall, forces) of the wall contacts, or None without any."""
+        if not self.wall_particle.shape[0]:
+            return None
+        return self.wall_particle, self.wall, self.wall_forces
 
     @property
     def n_stable(self) -> int:
@@ -91,7 +108,7 @@ def network_balance(search: NeighborSearch, network: ContactNetwork) -> float:
     current = search.pairs_of(network.i, network.j)
     return force_balance(network.rattlers.size, current.i, current.j,
                          current.vectors / current.distances[:, None], network.forces,
-                         ~network.rattlers)
+                         ~network.rattlers, network.walls)
 
 
 def overlaps_outside(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -217,7 +234,8 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
 
 
 def touching_network(search: NeighborSearch, network: ContactNetwork, balance: float, d: int,
-                     balance_tolerance: float) -> tuple[ContactNetwork, float, str | None]:
+                     balance_tolerance: float, wall_axes: tuple[int, ...] = (),
+                     zero_modes: int | None = None) -> tuple[ContactNetwork, float, str | None]:
     """The touching pairs as the contact network, when the LP's duals missed contacts.
 
     At a degenerate jammed point (crystals, other hyperstatic packings) the LP has many
@@ -227,7 +245,9 @@ def touching_network(search: NeighborSearch, network: ContactNetwork, balance: f
     (h < `GEOMETRIC_CONTACT_GAP`) give a network with more stable particles (or as many,
     and more contacts), the touching network is used instead, with the positive
     self-stress near uniform forces that `positive_self_stress` finds, if there is one and
-    it balances to `balance_tolerance`. Otherwise the LP network is kept.
+    it balances to `balance_tolerance`. Otherwise the LP network is kept. With flat walls
+    along `wall_axes`, the particles touching a wall count too (`calippso.walls`), and
+    `zero_modes` (default d) enters the isostatic count.
 
     Returns
     -------
@@ -235,50 +255,77 @@ def touching_network(search: NeighborSearch, network: ContactNetwork, balance: f
         The network, its force balance, and the note when the touching network was taken.
     """
     n = network.rattlers.size
-    if network.n_stable > 0 and isostaticity_gap(network.n_contacts, network.n_stable, d) >= 0:
+    if network.n_stable > 0 and isostaticity_gap(network.n_contacts, network.n_stable, d,
+                                                 zero_modes) >= 0:
         return network, balance, None
     close = search.pairs_near_contact()
     touching = close.subset(close.gaps < GEOMETRIC_CONTACT_GAP)
-    rattlers, kept = remove_rattlers(n, d, touching.i, touching.j)
+    walls = walls_near_contact(search, wall_axes)
+    walls = walls.subset(walls.gaps < GEOMETRIC_CONTACT_GAP)
+    rattlers, kept = remove_rattlers(n, d, touching.i, touching.j,
+                                     walls.particle if wall_axes else None)
     touching = touching.subset(kept)
+    walls = walls.subset(~rattlers[walls.particle])
     n_stable_touching = int(np.count_nonzero(~rattlers))
-    if (n_stable_touching, len(touching)) <= (network.n_stable, network.n_contacts):
+    if (n_stable_touching, len(touching) + len(walls)) <= (network.n_stable,
+                                                            network.n_contacts):
         return network, balance, None
     normals = touching.vectors / touching.distances[:, None]
     weights = touching.sigma**2 / touching.distances
-    forces = positive_self_stress(n, touching.i, touching.j, normals, weights)
+    extra = None
+    if len(walls):
+        extra = wall_equilibrium_columns(n, d, walls.particle, walls.wall)
+        weights = np.concatenate([weights, walls.sigma**2 / walls.distances])
+    forces = positive_self_stress(n, touching.i, touching.j, normals, weights, extra)
     if forces is None:
         return network, balance, None
-    new_balance = force_balance(n, touching.i, touching.j, normals, forces, ~rattlers)
+    m = len(touching)
+    wall_part = (walls.particle, walls.wall, forces[m:]) if len(walls) else None
+    new_balance = force_balance(n, touching.i, touching.j, normals, forces[:m], ~rattlers,
+                                wall_part)
     if new_balance > balance_tolerance:
         return network, balance, None
     note = (f"contacts taken from the touching pairs (h < {GEOMETRIC_CONTACT_GAP:g}): the LP "
             f"duals are degenerate here; forces are a positive self-stress near uniform")
-    return (ContactNetwork(touching.i, touching.j, forces, rattlers, float(forces @ weights),
-                           network.solver, from_lp=False), new_balance, note)
+    return (ContactNetwork(touching.i, touching.j, forces[:m], rattlers,
+                           float(forces @ weights), network.solver, from_lp=False,
+                           wall_particle=walls.particle, wall=walls.wall,
+                           wall_forces=forces[m:]), new_balance, note)
 
 
 def polished_forces(search: NeighborSearch, network: ContactNetwork,
-                    balance: float) -> tuple[np.ndarray, float, str | None]:
+                    balance: float) -> tuple[ContactNetwork, float, str | None]:
     """Forces refined by least squares on the equilibrium equations, if that helps.
+
+    Wall contacts (`ContactNetwork.walls`) are polished with the pair contacts, as further
+    columns of the equilibrium matrix (`calippso.walls.wall_equilibrium_columns`).
 
     Returns
     -------
-    (ndarray, float, str or None)
-        Forces, shape (M,), their balance, and the note when the polished forces are kept
-        (all positive and better balanced); otherwise the network's own forces and `balance`.
+    (ContactNetwork, float, str or None)
+        The network with the polished forces, their balance, and the note, when they are kept
+        (all positive and better balanced); otherwise `network` itself and `balance`.
     """
+    n = network.rattlers.size
     geometry = search.pairs_of(network.i, network.j)
     normals = geometry.vectors / geometry.distances[:, None]
     weights = geometry.sigma**2 / geometry.distances
-    polished = polish_forces(network.rattlers.size, geometry.i, geometry.j, normals, weights,
-                             network.forces)
-    new_balance = force_balance(network.rattlers.size, geometry.i, geometry.j, normals,
-                                polished, ~network.rattlers)
+    forces, extra = network.forces, None
+    if network.walls is not None:
+        walls = wall_rows_of(search.positions, search.diameters, search.box,
+                             network.wall_particle, network.wall)
+        extra = wall_equilibrium_columns(n, search.d, walls.particle, walls.wall)
+        weights = np.concatenate([weights, walls.sigma**2 / walls.distances])
+        forces = np.concatenate([forces, network.wall_forces])
+    polished = polish_forces(n, geometry.i, geometry.j, normals, weights, forces, extra)
+    m = network.i.shape[0]
+    new = replace(network, forces=polished[:m], wall_forces=polished[m:])
+    new_balance = force_balance(n, geometry.i, geometry.j, normals, new.forces,
+                                ~network.rattlers, new.walls)
     if np.all(polished > 0) and new_balance < balance:
-        return (polished, new_balance,
+        return (new, new_balance,
                 f"forces polished by least squares (balance {balance:.1e} -> {new_balance:.1e})")
-    return network.forces, balance, None
+    return network, balance, None
 
 
 @dataclass(frozen=True, eq=False)
@@ -302,17 +349,30 @@ class RoundoffShrink:
     note: str
 
 
-def remove_roundoff_overlaps(search: NeighborSearch) -> RoundoffShrink | None:
+def remove_roundoff_overlaps(search: NeighborSearch,
+                             wall_axes: tuple[int, ...] = ()) -> RoundoffShrink | None:
     """The shrink that leaves no overlap (`calippso.neighbors.shrink_to_margin`, closest
-    pair `ROUNDOFF_SHRINK_MARGIN` apart), or None when no pair overlaps."""
+    pair `ROUNDOFF_SHRINK_MARGIN` apart), or None when no pair overlaps. With flat walls
+    along `wall_axes`, a particle crossing its wall counts as an overlap too."""
     close = search.pairs_near_contact()
-    if not len(close):
+    walls = walls_near_contact(search, wall_axes)
+    if not len(close) and not len(walls):
         return None
-    worst = float(close.gaps.min())
+    worst = min(close.smallest_gap(), walls.smallest_gap())
     if worst >= 0:
         return None
     factor = shrink_to_margin(worst, ROUNDOFF_SHRINK_MARGIN)
-    shrunk = NeighborSearch(search.positions, search.diameters * factor, search.box)
+    shrunk = NeighborSearch(search.positions, search.diameters * factor, search.box,
+                            search.periodic)
     note = (f"diameters scaled by 1 - {1 - factor:.1e} to remove round-off overlaps (worst gap "
             f"{worst:.1e})")
-    return RoundoffShrink(factor, shrunk, shrunk.pairs_near_contact().smallest_gap(), note)
+    smallest = min(shrunk.pairs_near_contact().smallest_gap(),
+                   walls_near_contact(shrunk, wall_axes).smallest_gap())
+    return RoundoffShrink(factor, shrunk, smallest, note)
+
+
+def walls_near_contact(search: NeighborSearch, wall_axes: tuple[int, ...]) -> WallRows:
+    """Particle–wall pairs that touch, cross or nearly touch (δ ≤ σ_i/2 × (1 +
+    `NEAR_CONTACT_SLACK`)) the flat walls along `wall_axes` (`calippso.walls`)."""
+    return wall_rows_within(search.positions, search.diameters, search.box, wall_axes,
+                            0.0, 1.0 + NEAR_CONTACT_SLACK)

@@ -17,7 +17,8 @@ import numpy as np
 from .boundaries import Boundaries
 from .periodic import minimum_image, wrap
 
-__all__ = ["Packing", "Boundaries", "ball_volume", "minimum_image", "wrap"]
+__all__ = ["Packing", "Boundaries", "ball_volume", "minimum_image", "wrap", "packing_of",
+           "packing_arrays"]
 
 
 def ball_volume(d: int, radius: np.ndarray | float) -> np.ndarray | float:
@@ -170,11 +171,6 @@ class Packing:
         return Packing(wrap(self.positions, self.box, self.periodic), self.diameters, self.box,
                        self.boundaries)
 
-    def with_arrays(self, positions: np.ndarray, diameters: np.ndarray,
-                    box: np.ndarray | None = None) -> "Packing":
-        """A packing with new positions and diameters (and box) and these boundaries."""
-        return Packing(positions, diameters, self.box if box is None else box, self.boundaries)
-
     def scaled_to_phi(self, phi: float) -> "Packing":
         """The same centres with all diameters scaled by one factor to reach packing fraction `phi`."""
         if not phi > 0:
@@ -188,3 +184,22 @@ class Packing:
         walls = "" if self.boundaries.is_periodic else f", {self.boundaries.describe()}"
         return (f"Packing(n={self.n}, d={self.d}, phi={self.phi:.6f}, {kind}, "
                 f"box={self.box.tolist()}{walls})")
+
+
+def packing_of(arrays) -> Packing:
+    """The `Packing` held by a mapping of arrays (our `.npz` and HDF5 keys): positions,
+    diameters, box, and the "boundaries" string when the box has walls."""
+    boundaries = (Boundaries.from_text(str(np.asarray(arrays["boundaries"])[()]))
+                  if "boundaries" in arrays else None)
+    return Packing(arrays["positions"], arrays["diameters"], arrays["box"], boundaries)
+
+
+def packing_arrays(packing: Packing) -> dict[str, np.ndarray]:
+    """The arrays of a `Packing` in our `.npz` and HDF5 files: positions, diameters, box,
+    and "boundaries" (the kind of every axis, e.g. "walls periodic") only when the box is not
+    periodic, so that a periodic file is what it always was."""
+    arrays = {"positions": packing.positions, "diameters": packing.diameters,
+              "box": packing.box}
+    if not packing.boundaries.is_periodic:
+        arrays["boundaries"] = np.array(str(packing.boundaries))
+    return arrays

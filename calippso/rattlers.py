@@ -33,11 +33,13 @@ RATTLER_REACH = 1e-4
 RATTLER_CLEARANCE = 1e-9
 
 
-def remove_rattlers(n: int, d: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def remove_rattlers(n: int, d: int, i: np.ndarray, j: np.ndarray,
+                    wall_particle: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Recursively remove particles with fewer than d + 1 contacts.
 
     Removing a rattler lowers its neighbours' counts, which may make them rattlers too; the
-    removal repeats until every remaining particle has at least d + 1 contacts.
+    removal repeats until every remaining particle has at least d + 1 contacts. A contact
+    with a wall counts for its particle (and never goes away: walls are not removed).
 
     Parameters
     ----------
@@ -45,6 +47,9 @@ def remove_rattlers(n: int, d: int, i: np.ndarray, j: np.ndarray) -> tuple[np.nd
         Number of particles and dimension.
     i, j : ndarray, shape (M,)
         Contact pairs.
+    wall_particle : ndarray, shape (K,), int, optional
+        The particle of every wall contact (`calippso.walls`); a wall contact is kept
+        exactly when its particle is stable.
 
     Returns
     -------
@@ -54,8 +59,11 @@ def remove_rattlers(n: int, d: int, i: np.ndarray, j: np.ndarray) -> tuple[np.nd
     """
     rattlers = np.zeros(n, dtype=bool)
     kept = np.ones(i.shape[0], dtype=bool)
+    at_walls = (np.zeros(n, dtype=np.int64) if wall_particle is None
+                else np.bincount(wall_particle, minlength=n))
     while True:
-        counts = np.bincount(i[kept], minlength=n) + np.bincount(j[kept], minlength=n)
+        counts = (np.bincount(i[kept], minlength=n) + np.bincount(j[kept], minlength=n)
+                  + at_walls)
         new = (counts < d + 1) & ~rattlers
         if not new.any():
             return rattlers, kept

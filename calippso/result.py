@@ -23,6 +23,16 @@ solver                      () str           backend name
 history_<column>            (records,)       one entry per stage, see `HISTORY_COLUMNS`
 ==========================  ===============  ===============================================
 
+A packing with walls (`calippso.boundaries`) adds three keys; a periodic one has none of
+them, and a file without them is periodic:
+
+==========================  ===============  ===============================================
+boundaries                  () str           the kind of every axis, e.g. "walls periodic"
+wall_contacts               (K, 2) int64     (particle, wall) of each wall contact; wall
+                                             2μ is at 0 on axis μ, 2μ + 1 at L_μ
+wall_forces                 (K,) float64     their force magnitudes, in the units of forces
+==========================  ===============  ===============================================
+
 Files written before `stop_reason` and `notes` were stored still load: the reason is read
 from the status sentence (`calippso.history.reason_from_status`) and the notes are empty.
 """
@@ -38,7 +48,8 @@ import numpy as np
 from .atomic import save_npz_atomic
 from .history import (HISTORY_COLUMNS, HISTORY_DTYPE, StopReason, empty_history,
                       reason_from_status)
-from .packing import Packing
+from .boundaries import axis_name
+from .packing import Packing, packing_of
 
 __all__ = ["JammingResult", "load_result", "HISTORY_COLUMNS", "empty_history", "StopReason"]
 
@@ -91,6 +102,12 @@ class JammingResult:
         hand, or an old file whose status names no reason).
     notes : list of str
         What the run repaired, retried or tried on the way (each a clause of `status`).
+    wall_contacts : ndarray, shape (K, 2), int64
+        Contacts of stable particles with flat walls: (particle, wall), wall 2μ at 0 and
+        2μ + 1 at L_μ along axis μ (`calippso.walls`); empty in a periodic box.
+    wall_forces : ndarray, shape (K,)
+        Their force magnitudes, in the units of `forces` (all forces together have mean 1);
+        the force on the particle points into the box, along +e_μ from the wall at 0.
     """
 
     packing: Packing
@@ -107,6 +124,8 @@ class JammingResult:
     solver: str = ""
     stop_reason: StopReason | None = None
     notes: list[str] = field(default_factory=list)
+    wall_contacts: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    wall_forces: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def d(self) -> int:
@@ -125,20 +144,52 @@ class JammingResult:
 
     @property
     def n_contacts(self) -> int:
-        """Number of contacts N_c among stable particles."""
-        return int(self.contacts.shape[0])
+        """Number of contacts N_c of stable particles: with each other and with walls."""
+        return int(self.contacts.shape[0] + self.wall_contacts.shape[0])
+
+    @property
+    def n_wall_contacts(self) -> int:
+        """Number of contacts with walls (included in `n_contacts`)."""
+        return int(self.wall_contacts.shape[0])
 
     @property
     def isostaticity_gap(self) -> int:
-        """N_c − d (N_s − 1) − 1: zero for an isostatic packing."""
+        """N_c − (d N_s + 1 − zero modes): zero for an isostatic packing. The zero modes are
+        the d translations in a periodic box (N_c − d (N_s − 1) − 1), the translations along
+        the periodic axes with walls (`Boundaries.zero_modes`)."""
         from .contacts import isostaticity_gap
 
-        return isostaticity_gap(self.n_contacts, self.n_stable, self.d)
+        return isostaticity_gap(self.n_contacts, self.n_stable, self.d,
+                                self.packing.boundaries.zero_modes)
 
     @property
     def isostatic(self) -> bool:
-        """True when N_c = d (N_s − 1) + 1 with at least one stable particle."""
+        """True when the isostaticity gap is zero with at least one stable particle."""
         return self.n_stable > 0 and self.isostaticity_gap == 0
+
+    @property
+    def wall_loads(self) -> np.ndarray:
+        """The force of the particles on every wall, along its axis, shape (d, 2).
+
+        Entry (μ, 0) is for the wall at 0 (≤ 0: pushed out of the box), (μ, 1) for the wall
+        at L_μ (≥ 0); zeros for an axis without walls. In force balance the two entries of a
+        row are equal and opposite. Units of `forces`.
+        """
+        from .walls import wall_loads
+
+        return wall_loads(self.d, self.wall_contacts[:, 1], self.wall_forces)
+
+    @property
+    def wall_pressures(self) -> np.ndarray:
+        """Pressure on every wall, |load| / its area Π_{ν≠μ} L_ν, shape (d, 2) (units of
+        `forces` per length^(d−1)); NaN for an axis without walls."""
+        box = self.packing.box
+        areas = np.prod(box) / box
+        pressures = np.abs(self.wall_loads) / areas[:, None]
+        walled = np.zeros(self.d, dtype=bool)
+        walled[list(self.packing.boundaries.wall_axes)] = True
+        pressures[~walled] = np.nan
+        return pressures
 
     @property
     def rattler_fraction(self) -> float:
@@ -147,8 +198,10 @@ class JammingResult:
 
     @property
     def contact_numbers(self) -> np.ndarray:
-        """Contacts per particle, shape (N,), int64 (0 for rattlers)."""
-        return np.bincount(self.contacts.ravel(), minlength=self.packing.n).astype(np.int64)
+        """Contacts per particle, wall contacts included, shape (N,), int64 (0 for
+        rattlers)."""
+        every = np.concatenate([self.contacts.ravel(), self.wall_contacts[:, 0]])
+        return np.bincount(every, minlength=self.packing.n).astype(np.int64)
 
     @property
     def contact_vectors(self) -> np.ndarray:
@@ -156,8 +209,9 @@ class JammingResult:
         from .packing import minimum_image
 
         i, j = self.contacts[:, 0], self.contacts[:, 1]
+        periodic = self.packing.periodic
         return minimum_image(self.packing.positions[i] - self.packing.positions[j],
-                             self.packing.box)
+                             self.packing.box, None if periodic.all() else periodic)
 
     def summary(self) -> str:
         """A few lines describing the result, for humans."""
@@ -172,6 +226,11 @@ class JammingResult:
             f"  force balance = {self.force_balance:.2e}, sum lambda sigma^2 = "
             f"{self.dual_normalization:.15f}",
         ]
+        if not self.packing.boundaries.is_periodic:
+            loads = ", ".join(f"{axis_name(axis)}: {self.wall_loads[axis, 1]:.6g}"
+                              for axis in self.packing.boundaries.wall_axes)
+            lines.append(f"  {self.packing.boundaries.describe()}; {self.n_wall_contacts} wall "
+                         f"contacts; force on the walls {loads}")
         if self.history.shape[0]:
             lines.append(f"  min gap = {self.history['min_gap'][-1]:.2e} (relative to sigma_ij)")
         return "\n".join(lines)
@@ -201,6 +260,9 @@ class JammingResult:
             "stop_reason": np.array("" if self.stop_reason is None else self.stop_reason.value),
             "notes": np.array(_NOTES_SEPARATOR.join(self.notes)),
         }
+        if not self.packing.boundaries.is_periodic:
+            arrays.update(boundaries=np.array(str(self.packing.boundaries)),
+                          wall_contacts=self.wall_contacts, wall_forces=self.wall_forces)
         for name in HISTORY_COLUMNS:
             arrays[f"history_{name}"] = self.history[name]
         return arrays
@@ -245,7 +307,7 @@ class JammingResult:
             stop_reason = reason_from_status(status, steps[-1] if steps else "")
         notes = scalar("notes", "", str)
         return cls(
-            packing=Packing(arrays["positions"], arrays["diameters"], arrays["box"]),
+            packing=packing_of(arrays),
             contacts=np.asarray(arrays["contacts"], dtype=np.int64).reshape(-1, 2),
             forces=np.asarray(arrays["forces"], dtype=np.float64),
             rattlers=np.asarray(arrays["rattlers"], dtype=bool),
@@ -259,6 +321,9 @@ class JammingResult:
             solver=scalar("solver", "", str),
             stop_reason=stop_reason,
             notes=notes.split(_NOTES_SEPARATOR) if notes else [],
+            wall_contacts=np.asarray(arrays.get("wall_contacts", np.zeros((0, 2))),
+                                     dtype=np.int64).reshape(-1, 2),
+            wall_forces=np.asarray(arrays.get("wall_forces", np.zeros(0)), dtype=np.float64),
         )
 
 

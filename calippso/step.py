@@ -8,7 +8,7 @@ Lengths are in the loop's units (mean input diameter = 1).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -60,6 +60,10 @@ class Step:
         Relaxing the bound would increase Γ (`held_by_bound`).
     offered_warm_start : bool
         The LP was given the previous LP's basis.
+    wall_rows : ndarray, shape (K_c,), int
+        Rows of `lp.walls` that are contacts of a stable particle with a wall.
+    wall_forces : ndarray, shape (K_c,)
+        Their forces f = μ/2, in the units of `forces`.
     """
 
     lp: LinearProgram
@@ -73,6 +77,8 @@ class Step:
     stable_fraction: float
     held_by_bound: bool
     offered_warm_start: bool = False
+    wall_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    wall_forces: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def displacements(self) -> np.ndarray:
@@ -81,14 +87,15 @@ class Step:
 
     @property
     def n_contacts(self) -> int:
-        """Contacts between stable particles."""
-        return int(self.contact_rows.shape[0])
+        """Contacts of stable particles: with each other and with walls."""
+        return int(self.contact_rows.shape[0] + self.wall_rows.shape[0])
 
     @property
     def hypostatic(self) -> bool:
-        """Fewer contacts than d (N_s − 1) + 1, or no stable particle at all."""
+        """Fewer contacts than d N_s + 1 − zero modes, or no stable particle at all."""
         n_stable = int(self.rattlers.size - self.rattlers.sum())
-        return n_stable == 0 or isostaticity_gap(self.n_contacts, n_stable, self.lp.d) < 0
+        return n_stable == 0 or isostaticity_gap(self.n_contacts, n_stable, self.lp.d,
+                                                 self.lp.zero_modes) < 0
 
     @property
     def needs_cold_resolve(self) -> bool:
@@ -103,14 +110,17 @@ class Step:
 
     @property
     def normalization(self) -> float:
-        """Σ μ_ij σ_ij² / (2 |r_ij|) over the rows: 1 at an exact optimum."""
+        """Σ μ σ² / (2 |r|) over the rows (wall rows included): 1 at an exact optimum."""
         return float(self.solution.duals @ self.lp.gamma_coefficients)
 
     def network(self) -> ContactNetwork:
         """The LP's contact network, with the forces of its duals."""
         pairs, rows = self.lp.pairs, self.contact_rows
+        walls = self.lp.walls.subset(self.wall_rows)
         return ContactNetwork(pairs.i[rows], pairs.j[rows], self.forces, self.rattlers,
-                              self.normalization, self.solution.solver, from_lp=True)
+                              self.normalization, self.solution.solver, from_lp=True,
+                              wall_particle=walls.particle, wall=walls.wall,
+                              wall_forces=self.wall_forces)
 
 
 def analyse(lp: LinearProgram, solution: LPSolution, settings: JamSettings,
@@ -138,19 +148,27 @@ def analyse(lp: LinearProgram, solution: LPSolution, settings: JamSettings,
     n, d = lp.n, lp.d
     threshold = (settings.contact_threshold if solution.vertex
                  else settings.interior_contact_threshold)
-    rows = np.flatnonzero(contact_mask(solution.duals, threshold))
-    pairs = lp.pairs
+    every = np.flatnonzero(contact_mask(solution.duals, threshold))
+    pairs, m = lp.pairs, len(lp.pairs)
+    rows, wall_rows = every[every < m], every[every >= m] - m
+    wall_particle = lp.walls.particle[wall_rows]
     contacting = np.zeros(n, dtype=bool)
     contacting[pairs.i[rows]] = contacting[pairs.j[rows]] = True
-    rattlers, kept = remove_rattlers(n, d, pairs.i[rows], pairs.j[rows])
+    contacting[wall_particle] = True
+    rattlers, kept = remove_rattlers(n, d, pairs.i[rows], pairs.j[rows],
+                                     wall_particle if len(lp.walls) else None)
     if stable is not None:
         rattlers |= ~stable
     rows = rows[kept]
+    wall_rows = wall_rows[~rattlers[wall_particle]]
     forces = 0.5 * solution.duals[rows]
+    wall_forces = 0.5 * solution.duals[m + wall_rows]
     normals = pairs.vectors[rows] / pairs.distances[rows, None]
-    balance = force_balance(n, pairs.i[rows], pairs.j[rows], normals, forces, ~rattlers)
+    walls = (lp.walls.particle[wall_rows], lp.walls.wall[wall_rows], wall_forces)
+    balance = force_balance(n, pairs.i[rows], pairs.j[rows], normals, forces, ~rattlers,
+                            walls if len(lp.walls) else None)
     s = solution.x[:-1].reshape(n, d)
-    free = lp.col_upper[:-1].reshape(n, d)[:, 0] > 0
+    free = (lp.col_upper[:-1].reshape(n, d) > 0).any(axis=1)
     max_contacting = float(np.abs(s[contacting & free]).max(initial=0.0))
     # with no stable particle at all, the steps of particles with a contact count: a run is
     # not converged just because rattler removal emptied its network
@@ -158,7 +176,7 @@ def analyse(lp: LinearProgram, solution: LPSolution, settings: JamSettings,
                         if (~rattlers).any() else max_contacting)
     return Step(lp, solution, rows, rattlers, forces, balance, max_displacement,
                 max_contacting, float(np.count_nonzero(~rattlers)) / n,
-                held_by_bound(lp, solution), offered_warm_start)
+                held_by_bound(lp, solution), offered_warm_start, wall_rows, wall_forces)
 
 
 def at_bound(displacement: float | np.ndarray, bound: float) -> bool | np.ndarray:

@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 
+from calippso.boundaries import Boundaries
 from calippso.packing import Packing, ball_volume
 
 from ._checks import check_diameters, check_dimension, check_phi
@@ -13,8 +14,10 @@ from ._checks import check_diameters, check_dimension, check_phi
 __all__ = ["poisson", "start_of"]
 
 
-def poisson(diameters, d: int, *, phi: float, seed: int = 0) -> Packing:
-    """Uniform random centres in a cubic periodic box; the spheres overlap freely.
+def poisson(diameters, d: int, *, phi: float, seed: int = 0,
+            boundaries: Boundaries | None = None) -> Packing:
+    """Uniform random centres in a cubic box, inside its container; the spheres overlap
+    freely with each other, never with a wall.
 
     Parameters
     ----------
@@ -23,27 +26,50 @@ def poisson(diameters, d: int, *, phi: float, seed: int = 0) -> Packing:
     d : int
         Dimension (≥ 2).
     phi : float
-        Packing fraction Σ V_d(σ_i/2) / L^d in (0, 1), which sets the box side L.
+        Packing fraction Σ V_d(σ_i/2) / V in (0, 1), with V the container's volume (L^d, or
+        the cylinder inscribed in the cube), which sets the box side L.
     seed : int
         Seed of the centres.
+    boundaries : Boundaries, optional
+        The container (`calippso.boundaries`); default periodic along every axis. Along an
+        axis with walls a centre lies in [σ_i/2, L − σ_i/2]; in a cylinder's circle, within
+        (L − σ_i)/2 of its axis (uniform over that disc).
 
     Returns
     -------
     Packing
-        Positions in [0, L)^d. A start, not a run: the one maker that returns a `Packing`
-        rather than a `GenerationResult`.
+        Positions in [0, L)^d, with these boundaries. A start, not a run: the one maker that
+        returns a `Packing` rather than a `GenerationResult`.
     """
     diameters = check_diameters(diameters)
     d = check_dimension(d)
     phi = check_phi(phi)
-    side = (float(np.sum(ball_volume(d, diameters / 2))) / phi) ** (1.0 / d)
-    if diameters.max() >= 0.5 * side:
+    boundaries = Boundaries.all_periodic(d) if boundaries is None else boundaries
+    if boundaries.d != d:
+        raise ValueError(f"boundaries have {boundaries.d} axes, expected d = {d}")
+    volume = float(np.sum(ball_volume(d, diameters / 2))) / phi
+    side = (volume / boundaries.volume(np.ones(d))) ** (1.0 / d)
+    if boundaries.n_periodic and diameters.max() >= 0.5 * side:
         raise ValueError(
             f"too few particles for phi = {phi}: the box side {side:.3g} is not above twice the "
             f"largest diameter {diameters.max():.3g}; use more particles or a lower phi"
         )
-    positions = np.random.default_rng(seed).uniform(0.0, side, size=(diameters.shape[0], d))
-    return Packing(positions, diameters, np.full(d, side)).wrapped()
+    if diameters.max() >= side:
+        raise ValueError(f"too few particles for phi = {phi}: the container {side:.3g} is not "
+                         f"wider than the largest diameter {diameters.max():.3g}")
+    rng = np.random.default_rng(seed)
+    n = diameters.shape[0]
+    positions = rng.uniform(0.0, side, size=(n, d))
+    radius = 0.5 * diameters
+    for axis in boundaries.wall_axes:
+        positions[:, axis] = radius + rng.uniform(0.0, 1.0, n) * (side - diameters)
+    if boundaries.cylinder_axes:
+        reach = 0.5 * (side - diameters) * np.sqrt(rng.uniform(0.0, 1.0, n))
+        angle = rng.uniform(0.0, 2.0 * np.pi, n)
+        a, b = boundaries.cylinder_axes
+        positions[:, a] = 0.5 * side + reach * np.cos(angle)
+        positions[:, b] = 0.5 * side + reach * np.sin(angle)
+    return Packing(positions, diameters, np.full(d, side), boundaries).wrapped()
 
 
 def start_of(diameters, d: int | None, start: Packing | None, *, phi: float,
@@ -85,6 +111,9 @@ def start_of(diameters, d: int | None, start: Packing | None, *, phi: float,
         return poisson(diameters, d, phi=phi, seed=seed), True
     if not isinstance(start, Packing):
         raise ValueError(f"start must be a calippso.Packing, got {type(start).__name__}")
+    if not start.boundaries.is_periodic:
+        raise ValueError(f"the generators make periodic packings only; this start has "
+                         f"{start.boundaries.describe()}")
     if d is not None and d != start.d:
         raise ValueError(f"d = {d} contradicts the start's dimension {start.d}")
     if diameters is not None and not np.array_equal(check_diameters(diameters), start.diameters):

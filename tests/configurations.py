@@ -6,11 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from calippso import Packing
+from calippso.boundaries import Boundaries
 from calippso.packing import ball_volume
 
 
 def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0,
-                               diameters: np.ndarray | None = None) -> Packing:
+                               diameters: np.ndarray | None = None,
+                               boundaries: Boundaries | None = None) -> Packing:
     """Non-overlapping random configuration: insert spheres one by one at random free places.
 
     Parameters
@@ -21,26 +23,33 @@ def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0,
         Target packing fraction (must be below the random-sequential-addition limit).
     diameters : ndarray, optional
         Diameters (mean scaled to 1); monodisperse by default. Inserted largest first.
+    boundaries : Boundaries, optional
+        Flat walls (`Boundaries.walls`); a sphere is then placed inside them. Periodic by
+        default.
     """
     rng = np.random.default_rng(seed)
     sizes = np.ones(n) if diameters is None else np.asarray(diameters, float) / np.mean(diameters)
     side = (np.sum(ball_volume(d, sizes / 2)) / phi) ** (1.0 / d)
     box = np.full(d, side)
+    periodic = np.ones(d, bool) if boundaries is None else boundaries.periodic
+    walls = () if boundaries is None else boundaries.wall_axes
     order = np.argsort(-sizes)
     placed = np.zeros((0, d))
     placed_sizes = np.zeros(0)
     for k in order:
         for _ in range(100000):
             trial = rng.random(d) * side
+            for axis in walls:
+                trial[axis] = 0.5 * sizes[k] + rng.random() * (side - sizes[k])
             delta = placed - trial
-            delta -= box * np.round(delta / box)
+            delta -= np.where(periodic, box, 0.0) * np.round(delta / box)
             if np.all(np.einsum("nd,nd->n", delta, delta) > (0.5 * (placed_sizes + sizes[k])) ** 2):
                 placed = np.vstack([placed, trial])
                 placed_sizes = np.append(placed_sizes, sizes[k])
                 break
         else:
             raise RuntimeError(f"could not place particle {len(placed)} at phi = {phi}")
-    return Packing(placed, placed_sizes, box)
+    return Packing(placed, placed_sizes, box, boundaries)
 
 
 def bidisperse(n: int, ratio: float = 1.4) -> np.ndarray:

@@ -165,25 +165,25 @@ def test_read_refuses(tmp_path, name, content, error, pattern):
 
 
 def _packing_generation_folder(tmp: Path, boundaries_line: str) -> Path:
-    """GOOD written as a PackingGeneration folder, `boundaries_line` added to its conf."""
+    """GOOD written as a PackingGeneration folder, `boundaries_line` in place of its conf's
+    own "Boundaries mode: 1"."""
     folder = tmp / "pg"
     calippso.write(GOOD, folder / "packing.xyzd")
     conf = folder / "generation.conf"
-    conf.write_text(conf.read_text() + boundaries_line + "\n")
+    conf.write_text(conf.read_text().replace("Boundaries mode: 1", boundaries_line))
     return folder
 
 
 @pytest.mark.parametrize("line, pattern", [
     ("Boundaries mode: 2", r"boundaries mode 2 \(periodic in z inside a circle in xy\) is not "
-                           r"supported; calippso reads periodic packings \(mode 1\) only$"),
-    ("Boundaries mode: 3", r"boundaries mode 3 \(periodic in z inside a rectangle in xy\) is "
-                           r"not supported"),
+                           r"supported; calippso reads periodic packings \(mode 1\) and "
+                           r"rectangles \(mode 3\) only$"),
     ("Boundaries mode: 4", r"boundaries mode 4 \(periodic in z inside a trapezoid in xy\) is "
                            r"not supported"),
     ("Boundaries mode: 7", r"unknown boundaries mode 7; PackingGeneration's modes are 1, 2, 3, "
                            r"4$"),
     ("Boundaries mode: cylinder", r"'Boundaries mode:' is not an integer: 'cylinder'$"),
-], ids=["cylinder", "rectangle", "trapezoid", "unknown-mode", "non-numeric-mode"])
+], ids=["cylinder", "trapezoid", "unknown-mode", "non-numeric-mode"])
 def test_packing_generation_containers_are_refused(tmp_path, line, pattern):
     """A container packing is never read as a periodic one: one line naming the file."""
     folder = _packing_generation_folder(tmp_path, line)

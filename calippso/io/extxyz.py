@@ -1,4 +1,4 @@
-"""Extended XYZ (ASE, OVITO): a periodic packing in d = 2 or 3, one particle per line.
+"""Extended XYZ (ASE, OVITO): a packing in d = 2 or 3, one particle per line.
 
 Layout written::
 
@@ -13,6 +13,11 @@ vector has the length of the largest diameter (viewers need one). A `JammingResu
 columns ``rattler:L:1`` (T for rattlers) and ``contacts:I:1`` (contacts per particle), which
 OVITO can use to colour particles. The reader also accepts OVITO's ``radius`` column instead
 of ``diameter``.
+
+Flat walls (`calippso.boundaries`) are the axes whose ``pbc`` flag is F: ``pbc="T T F"``
+with ``dimension=3`` is a box with walls at z = 0 and z = L_z; in d = 2 the third flag is
+always F and the first two say which axes are periodic. A cylinder has no ``pbc`` form and
+is refused.
 """
 
 from __future__ import annotations
@@ -22,8 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..packing import Packing
 from ..atomic import atomic_path
+from ..boundaries import PERIODIC, WALLS, Boundaries
+from ..packing import Packing
 
 __all__ = ["column_names", "read", "read_rattlers", "write"]
 
@@ -45,6 +51,9 @@ def write(obj, path: Path) -> Path:
             f"extended XYZ holds d <= 3, this packing has d = {packing.d}: "
             f"write .npz or .h5 instead"
         )
+    if packing.boundaries.cylinder_axes:
+        raise ValueError(f"extended XYZ cannot hold a cylinder ({packing.boundaries.describe()})"
+                         f": write .npz or .h5 instead")
     n, d = packing.n, packing.d
     positions = np.zeros((n, 3))
     positions[:, :d] = packing.positions
@@ -55,7 +64,8 @@ def write(obj, path: Path) -> Path:
     if hasattr(obj, "rattlers") and hasattr(obj, "contact_numbers"):
         properties += ":rattler:L:1:contacts:I:1"
         columns += [np.where(obj.rattlers, "T", "F"), obj.contact_numbers]
-    pbc = "T T T" if d == 3 else "T T F"
+    pbc = " ".join(["T" if periodic else "F" for periodic in packing.periodic]
+                   + ([] if d == 3 else ["F"]))
     header = f'Lattice="{lattice}" Properties={properties} pbc="{pbc}" dimension={d}'
     body = [" ".join(_format(value) for value in row) for row in zip(*columns)]
     path = Path(path)
@@ -157,7 +167,14 @@ def read(path: Path) -> Packing:
         diameters = column(size)[:, 0] * (2.0 if size == "radius" else 1.0)
     except ValueError as error:
         raise ValueError(f"{path}: non-numeric position or size ({error})") from None
-    return Packing(positions, diameters, np.diag(lattice)[:d].copy())
+    if any(flag not in ("T", "F") for flag in pbc[:d]) or len(pbc) < d:
+        raise ValueError(f"{path}, line 2: pbc={fields['pbc']!r} needs T or F for each of the "
+                         f"{d} axes")
+    boundaries = Boundaries(tuple(PERIODIC if flag == "T" else WALLS for flag in pbc[:d]))
+    try:
+        return Packing(positions, diameters, np.diag(lattice)[:d].copy(), boundaries)
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None
 
 
 def column_names(path: Path) -> set[str]:

@@ -6,7 +6,9 @@ create overlaps, so the exact float64 values are stored too, as logged quantitie
 ``calippso/positions`` (wrapped into [0, L)), ``calippso/diameters`` and ``calippso/box``;
 the reader prefers them and falls back to the float32 schema data for files written by other
 programs. A `JammingResult` also logs ``calippso/rattlers`` and ``calippso/contacts``
-(contacts per particle) and sets the particle type to "stable" or "rattler".
+(contacts per particle) and sets the particle type to "stable" or "rattler". A box with walls
+logs ``calippso/boundaries``, one code per axis (the index of its kind in
+`calippso.boundaries.KINDS`); a file without it is periodic.
 """
 
 from __future__ import annotations
@@ -15,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..packing import Packing
 from ..atomic import atomic_path
+from ..boundaries import KINDS, Boundaries
+from ..packing import Packing
 
 __all__ = ["read", "write"]
 
@@ -59,6 +62,9 @@ def write(obj, path: Path) -> Path:
         "calippso/diameters": packing.diameters,
         "calippso/box": packing.box,
     }
+    if not packing.boundaries.is_periodic:
+        frame.log["calippso/boundaries"] = np.array(
+            [KINDS.index(kind) for kind in packing.boundaries.kinds], dtype=np.uint8)
     if hasattr(obj, "rattlers") and hasattr(obj, "contact_numbers"):
         frame.particles.types = ["stable", "rattler"]
         frame.particles.typeid = obj.rattlers.astype(np.uint32)
@@ -89,7 +95,13 @@ def read(path: Path) -> Packing:
         raise ValueError(f"{path}: not a readable GSD file ({error})") from None
     log = frame.log
     if "calippso/positions" in log:
-        return Packing(log["calippso/positions"], log["calippso/diameters"], log["calippso/box"])
+        boundaries = (Boundaries(tuple(KINDS[int(code)] for code in log["calippso/boundaries"]))
+                      if "calippso/boundaries" in log else None)
+        try:
+            return Packing(log["calippso/positions"], log["calippso/diameters"],
+                           log["calippso/box"], boundaries)
+        except ValueError as error:
+            raise ValueError(f"{path}: {error}") from None
     box = np.asarray(frame.configuration.box, dtype=np.float64)
     if np.any(box[3:] != 0):
         raise ValueError(

@@ -1,7 +1,8 @@
 """HDF5 via h5py (optional): a `Packing` or a full `JammingResult`, any d.
 
 The file holds the same keys as our `.npz` format (see `calippso.result`): one dataset per
-array at the root, string scalars (``status``, ``solver``) as root attributes. The root
+array at the root, string scalars (``status``, ``solver``, ``boundaries``) as root
+attributes. The root
 attribute ``calippso_format`` is "packing" or "result".
 """
 
@@ -11,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..packing import Packing
 from ..atomic import atomic_path
+from ..packing import Packing, packing_arrays, packing_of
 
 __all__ = ["read", "read_result", "write"]
 
@@ -33,10 +34,7 @@ def write(obj, path: Path) -> Path:
     if hasattr(obj, "to_arrays"):
         arrays, kind = obj.to_arrays(), "result"
     else:
-        arrays, kind = (
-            {"positions": obj.positions, "diameters": obj.diameters, "box": obj.box},
-            "packing",
-        )
+        arrays, kind = packing_arrays(obj), "packing"
     path = Path(path)
     with atomic_path(path) as temporary, h5py.File(temporary, "w") as file:
         file.attrs["calippso_format"] = kind
@@ -71,8 +69,10 @@ def _arrays(path: Path) -> dict:
 
 def read(path: Path) -> Packing:
     """Read the packing stored in an HDF5 file written by `write`."""
-    arrays = _arrays(path)
-    return Packing(arrays["positions"], arrays["diameters"], arrays["box"])
+    try:
+        return packing_of(_arrays(path))
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None
 
 
 def read_result(path: Path):

@@ -1,4 +1,5 @@
-"""Our own `.npz` format: a `Packing` (positions, diameters, box) or a full `JammingResult`."""
+"""Our own `.npz` format: a `Packing` (positions, diameters, box, and "boundaries" when the
+box has walls) or a full `JammingResult`."""
 
 from __future__ import annotations
 
@@ -8,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..packing import Packing
 from ..atomic import save_npz_atomic
+from ..packing import Packing, packing_arrays, packing_of
 
 __all__ = ["load_arrays", "read", "write"]
 
@@ -60,7 +61,7 @@ def read(path: Path) -> Packing:
     if missing:
         raise ValueError(f"{path}: not a calippso .npz file, missing keys {missing}")
     try:
-        return Packing(data["positions"], data["diameters"], data["box"])
+        return packing_of(data)
     except ValueError as error:
         raise ValueError(f"{path}: {error}") from None
 
@@ -69,6 +70,5 @@ def write(obj, path: Path) -> Path:
     """Write a `Packing` or `JammingResult` (anything with `to_arrays`) atomically."""
     if hasattr(obj, "save"):
         return obj.save(path)
-    arrays = {"positions": obj.positions, "diameters": obj.diameters, "box": obj.box}
-    save_npz_atomic(Path(path), arrays)
+    save_npz_atomic(Path(path), packing_arrays(obj))
     return Path(path)

@@ -3,8 +3,15 @@
 `packing.xyzd` holds little-endian float64 (x, y, z, d) per particle, d the nominal diameter.
 The true diameters are d · ((1 − final porosity)/(1 − theoretical porosity))^(1/3), with the
 porosities from `packing.nfo`. The box side comes from "Packing size:" in `generation.conf`,
-and its "Boundaries mode:" must be 1 (periodic; a file without the line, as `write` makes, is
-periodic): the other modes are containers, which calippso does not read.
+and its "Boundaries mode:" says the container (a file without the line is periodic):
+
+* 1, periodic in x, y and z;
+* 3, a rectangle in xy: flat walls at x = 0, X and y = 0, Y, periodic in z
+  (`calippso.boundaries.Boundaries.walls`); its porosities use the box's volume, so the
+  diameters are rescaled as in mode 1.
+
+Modes 2 (a cylinder) and 4 (a trapezoid) are refused until calippso can jam them. `write`
+writes modes 1 and 3.
 """
 
 from __future__ import annotations
@@ -14,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..boundaries import Boundaries
 from ..packing import Packing
 
 #: PackingGeneration's "Boundaries mode:" values and what each means.
@@ -21,8 +29,11 @@ BOUNDARIES_MODES = {1: "periodic in x, y and z",
                     2: "periodic in z inside a circle in xy",
                     3: "periodic in z inside a rectangle in xy",
                     4: "periodic in z inside a trapezoid in xy"}
-#: The one mode calippso reads.
+#: The modes calippso reads.
 PERIODIC_MODE = 1
+RECTANGLE_MODE = 3
+#: Axes with walls in the rectangle mode (x and y).
+RECTANGLE_AXES = (0, 1)
 
 
 def _field(text: str, label: str, path: Path) -> list[float]:
@@ -35,12 +46,13 @@ def _field(text: str, label: str, path: Path) -> list[float]:
         raise ValueError(f"{path}: '{label}:' is not numeric: {match.group(1)!r}") from None
 
 
-def _check_boundaries_mode(text: str, path: Path) -> None:
-    """Raise ValueError naming `path` and the mode unless the "Boundaries mode:" line of
-    `generation.conf` (text `text`) is absent or `PERIODIC_MODE`."""
+def _boundaries_mode(text: str, path: Path) -> int:
+    """The "Boundaries mode:" of `generation.conf` (text `text`): `PERIODIC_MODE` when the
+    line is absent; ValueError naming `path` and the mode unless it is `PERIODIC_MODE` or
+    `RECTANGLE_MODE`."""
     match = re.search(r"Boundaries mode\s*:\s*([^\n]*)", text)
     if not match:
-        return
+        return PERIODIC_MODE
     value = match.group(1).strip()
     try:
         mode = int(value)
@@ -49,10 +61,11 @@ def _check_boundaries_mode(text: str, path: Path) -> None:
     if mode not in BOUNDARIES_MODES:
         raise ValueError(f"{path}: unknown boundaries mode {mode}; PackingGeneration's modes "
                          f"are {', '.join(map(str, BOUNDARIES_MODES))}")
-    if mode != PERIODIC_MODE:
+    if mode not in (PERIODIC_MODE, RECTANGLE_MODE):
         raise ValueError(f"{path}: boundaries mode {mode} ({BOUNDARIES_MODES[mode]}) is not "
                          f"supported; calippso reads periodic packings (mode {PERIODIC_MODE}) "
-                         f"only")
+                         f"and rectangles (mode {RECTANGLE_MODE}) only")
+    return mode
 
 
 def read(path: Path) -> Packing:
@@ -66,7 +79,7 @@ def read(path: Path) -> Packing:
             raise ValueError(f"{xyzd}: {needed.name} is missing beside it (needed for the "
                              f"{'box size' if needed is conf else 'diameter rescaling'})")
     conf_text = conf.read_text()
-    _check_boundaries_mode(conf_text, conf)
+    mode = _boundaries_mode(conf_text, conf)
     raw = np.fromfile(xyzd, dtype="<f8")
     if raw.size == 0 or raw.size % 4:
         raise ValueError(f"{xyzd}: {raw.size * 8} bytes is not a whole number of (x, y, z, d) records")
@@ -79,8 +92,9 @@ def read(path: Path) -> Packing:
     theoretical = _field(nfo_text, "Theoretical Porosity", nfo)[0]
     final = _field(nfo_text, "Final Porosity", nfo)[0]
     scale = ((1.0 - final) / (1.0 - theoretical)) ** (1.0 / 3.0)
+    boundaries = Boundaries.walls(3, RECTANGLE_AXES) if mode == RECTANGLE_MODE else None
     try:
-        return Packing(records[:, :3], records[:, 3] * scale, box)
+        return Packing(records[:, :3], records[:, 3] * scale, box, boundaries)
     except ValueError as error:
         raise ValueError(f"{xyzd}: {error}") from None
 
@@ -89,9 +103,18 @@ def write(packing: Packing, path: Path) -> Path:
     """Write `packing.xyzd` with true diameters, plus a consistent `packing.nfo` and `generation.conf`.
 
     The `.nfo` states equal final and theoretical porosity, so reading back applies no rescale.
+    The conf's "Boundaries mode:" is 1 for a periodic packing, 3 for walls in x and y with z
+    periodic; other containers are refused.
     """
     if packing.d != 3:
         raise ValueError(f"PackingGeneration files hold d = 3 only, this packing has d = {packing.d}")
+    if packing.boundaries.is_periodic:
+        mode = PERIODIC_MODE
+    elif packing.boundaries == Boundaries.walls(3, RECTANGLE_AXES):
+        mode = RECTANGLE_MODE
+    else:
+        raise ValueError(f"PackingGeneration holds periodic boxes and rectangles (walls in x, y; "
+                         f"periodic in z), not {packing.boundaries.describe()}")
     path = Path(path)
     folder = path if path.suffix != ".xyzd" else path.parent
     folder.mkdir(parents=True, exist_ok=True)
@@ -103,5 +126,5 @@ def write(packing: Packing, path: Path) -> Path:
         f"N: {packing.n}\n Theoretical Porosity: {porosity:.17g}\nFinal Porosity: {porosity:.17g}\n")
     (folder / "generation.conf").write_text(
         f"Particles count: {packing.n}\nPacking size: "
-        + " ".join(f"{v:.17g}" for v in packing.box) + "\n")
+        + " ".join(f"{v:.17g}" for v in packing.box) + f"\nBoundaries mode: {mode}\n")
     return xyzd

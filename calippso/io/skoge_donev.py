@@ -44,6 +44,7 @@ def read(path: Path) -> Packing:
         diameters = np.full(n, diameter)
         box = np.ones(d)
         first = 3
+        flags = ["T"] * d
     elif len(header) == 2:
         n, species = header
         counts = _numbers(lines[2], path, 3, int)
@@ -59,9 +60,13 @@ def read(path: Path) -> Packing:
         if np.any(matrix[~np.eye(d, dtype=bool)] != 0):
             raise ValueError(f"{path}, line 5: only rectangular (diagonal) boxes are supported")
         box = np.diag(matrix).copy()
+        flags = lines[5].upper().split()
         first = 6
     else:
         raise ValueError(f"{path}, line 2: expected 'N' or 'N n_species', got {lines[1]!r}")
+    if "F" in flags:
+        raise ValueError(f"{path}, line 6: periodicity flags {' '.join(flags)!r}: calippso "
+                         f"reads periodic Skoge-Donev files only (T for every axis)")
     body = lines[first:first + n]
     if len(body) < n:
         raise ValueError(f"{path}: truncated, {len(body)} coordinate lines where N = {n}")
@@ -86,8 +91,12 @@ def write(packing: Packing, path: Path) -> Path:
     """Write the full Skoge–Donev format (species = distinct diameters, in order of appearance).
 
     Particles are grouped by species, as the format requires; 17 significant digits keep
-    float64 positions exact.
+    float64 positions exact. A box with walls is refused (the format's flags are written
+    "T" for every axis).
     """
+    if not packing.boundaries.is_periodic:
+        raise ValueError(f"Skoge-Donev files hold periodic packings here, this one has "
+                         f"{packing.boundaries.describe()}: write .npz, .h5 or .xyz instead")
     sizes, inverse = np.unique(packing.diameters, return_inverse=True)
     order = np.argsort(inverse, kind="stable")
     counts = np.bincount(inverse, minlength=sizes.size)
