@@ -264,4 +264,5 @@ def _check_no_overlap(packing: Packing) -> None:
 
     scale = packing.mean_diameter
     check_input_overlaps(NeighborSearch(packing.positions / scale, packing.diameters / scale,
-                                        packing.box / scale), OVERLAP_TOLERANCE)
+                                        packing.box / scale, packing.periodic),
+                         OVERLAP_TOLERANCE)

@@ -291,3 +291,24 @@ def test_packing_generation_rectangle_is_read_jammed_and_verified(tmp_path):
     assert packing.boundaries == Boundaries.walls(3, [0, 1])
     np.testing.assert_allclose(packing.diameters, start.diameters, rtol=1e-14)
     assert_jammed_between_walls(calippso.jam(packing))
+
+
+def test_analysis_sees_the_walls():
+    """Gaps are measured without images across a wall; the opening response, which does not
+    know wall contacts, refuses a box with walls in one line."""
+    from calippso.analysis.gaps import gaps
+    from calippso.analysis.response import opening_response
+
+    result = calippso.jam(walled_start(64, 2, [0], polydisperse=True))
+    packing = result.packing
+    h = gaps(result, max_gap=0.5)
+    stable = ~result.rattlers
+    delta = packing.positions[:, None, :] - packing.positions[None, :, :]
+    delta[..., 1] -= packing.box[1] * np.round(delta[..., 1] / packing.box[1])
+    sigma = 0.5 * (packing.diameters[:, None] + packing.diameters[None, :])
+    every = np.linalg.norm(delta, axis=2) / sigma - 1
+    upper = np.triu(np.ones_like(every, dtype=bool), 1) & stable[:, None] & stable[None, :]
+    expected = np.sort(every[upper & (every > 1e-11) & (every <= 0.5)])
+    np.testing.assert_allclose(h, expected, rtol=1e-12)
+    with pytest.raises(ValueError, match="periodic packings only"):
+        opening_response(result)

@@ -40,7 +40,8 @@ def gaps(result: JammingResult, max_gap: float = DEFAULT_MAX_GAP) -> np.ndarray:
     if not max_gap > 0:
         raise ValueError(f"max_gap must be positive, got {max_gap!r}")
     packing = result.packing
-    search = NeighborSearch(packing.positions, packing.diameters, packing.box)
+    search = NeighborSearch(packing.positions, packing.diameters, packing.box,
+                            packing.periodic)
     pairs = search.pairs_within((1.0 + max_gap) * float(np.max(packing.diameters)))
     stable = ~result.rattlers
     keys = pairs.i * packing.n + pairs.j

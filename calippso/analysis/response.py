@@ -151,8 +151,9 @@ def opening_response(result: JammingResult, *, factorization: str = "auto") -> O
     Raises
     ------
     ValueError
-        The packing is not isostatic (the opening equations are then not square), or its
-        contact network is singular (a floppy mode).
+        The packing is not isostatic (the opening equations are then not square), its
+        contact network is singular (a floppy mode), or its box has walls (wall contacts
+        are not in the opening equations yet).
 
     Notes
     -----
@@ -160,6 +161,9 @@ def opening_response(result: JammingResult, *, factorization: str = "auto") -> O
     """
     if factorization not in FACTORIZATIONS:
         raise ValueError(f"factorization must be one of {FACTORIZATIONS}, got {factorization!r}")
+    if not result.packing.boundaries.is_periodic:
+        raise ValueError(f"the opening response handles periodic packings only, this one has "
+                         f"{result.packing.boundaries.describe()}")
     if not result.isostatic:
         raise ValueError(
             f"the opening response needs an isostatic packing; this one has isostaticity gap "
