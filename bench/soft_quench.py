@@ -62,8 +62,9 @@ def jam_row(quench) -> dict:
 def run(n: int, d: int, seed: int, target_pressure: float, minimiser: str,
         jam: bool, save: Path | None = None) -> dict:
     """One quench of N monodisperse spheres (bidisperse 1:1.4 in d = 2); its table row. With
-    `save`, the packing and its network go to ``save/quench_d{d}_n{n}_seed{seed}_<minimiser>
-    .npz`` (the layout of bench/scale.py's cache)."""
+    `save`, the packing and its network go to ``save/quench_d{d}_n{n}_p{target_pressure:g}
+    _seed{seed}.npz``, the name under which ``bench/scale.py --generator quench --cache save``
+    reads it back instead of quenching (and `calippso.read` reads it)."""
     sizes = dist.bidisperse(n, 1.4, 0.5, seed) if d == 2 else dist.monodisperse(n)
     wall, cpu = time.perf_counter(), time.process_time()
     result = generators.soft_quench(sizes, d, seed=seed, target_pressure=target_pressure,
@@ -72,7 +73,7 @@ def run(n: int, d: int, seed: int, target_pressure: float, minimiser: str,
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
         packing = result.packing
-        np.savez(save / f"quench_d{d}_n{n}_seed{seed}_{result.extra['minimiser']}.npz",
+        np.savez(save / f"quench_d{d}_n{n}_p{target_pressure:g}_seed{seed}.npz",
                  positions=packing.positions, diameters=packing.diameters, box=packing.box,
                  contacts=result.contacts)
     extra = result.extra
@@ -177,7 +178,8 @@ def main() -> None:
                         help="with --kernels: minimisations before the timing")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     parser.add_argument("--save", type=Path, default=None,
-                        help="keep each quench's packing and network in this folder")
+                        help="keep each quench's packing and network in this folder (in a "
+                             "subfolder per minimiser when --minimiser names several)")
     args = parser.parse_args()
 
     if args.kernels:
@@ -202,8 +204,11 @@ def main() -> None:
     for n in args.sizes:
         for seed in args.seeds:
             for minimiser in args.minimiser:
+                folder = args.save
+                if folder is not None and len(args.minimiser) > 1:
+                    folder = folder / minimiser
                 rows.append(run(n, args.d, seed, args.target_pressure, minimiser, args.jam,
-                                args.save))
+                                folder))
                 print(format_row(rows[-1]), flush=True)
                 if args.json is not None:
                     args.json.write_text(json.dumps(rows, indent=1))

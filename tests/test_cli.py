@@ -450,3 +450,23 @@ def test_jam_pivots_option(capfd, tmp_path, start_2d):
     np.testing.assert_array_equal(results["always"].contacts, results["off"].contacts)
     code, _, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "z.npz", "--pivots", "some")
     assert code == 2 and "--pivots" in err
+
+
+def test_generate_quench_minimiser_option(capfd, tmp_path):
+    """--minimiser reaches soft_quench (the JSON record names the one that ran, auto picks by
+    the dimension), offers what soft_quench offers, and an unknown value is a usage error."""
+    from calippso.cli.generate import QUENCH_MINIMISERS
+    from generators.soft_quench import MINIMISERS, LBFGS_FROM_DIMENSION
+
+    assert QUENCH_MINIMISERS == MINIMISERS
+    for minimiser in ("fire", "lbfgs", "auto"):
+        code, out, _ = _run(capfd, "generate", "quench", "--n", "64", "--d", "3", "--seed", "1",
+                            "--minimiser", minimiser, "-o", tmp_path / f"{minimiser}.npz",
+                            "--json", "--quiet")
+        assert code == 0
+        ran = json.loads(out)["minimiser"]
+        auto = "lbfgs" if 3 >= LBFGS_FROM_DIMENSION else "fire"
+        assert ran == (auto if minimiser == "auto" else minimiser)
+    code, _, err = _run(capfd, "generate", "quench", "--n", "64", "--minimiser", "newton",
+                        "-o", tmp_path / "x.npz")
+    assert code == 2 and "--minimiser" in err

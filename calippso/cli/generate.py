@@ -10,6 +10,10 @@ from ..protocols import make_diameters
 from .common import (checkpoint_option, diameter_options, final_growth_rate_option, naming,
                      output_options, output_path, positive)
 
+#: Values of ``generate quench --minimiser`` (those of `generators.soft_quench`, which the
+#: command does not import before it runs).
+QUENCH_MINIMISERS = ("auto", "fire", "lbfgs")
+
 
 def _generation_record(protocol: str, generation, output: Path) -> tuple[dict, str]:
     """The JSON record and the text summary of a generation written to `output`."""
@@ -36,7 +40,8 @@ def _generation_record(protocol: str, generation, output: Path) -> tuple[dict, s
 
 @click.group()
 def generate() -> None:
-    """Make a configuration: ls, fb, mls (closest jamming) or spherocylinders."""
+    """Make a configuration: ls, quench (soft spheres), fb, mls (closest jamming) or
+    spherocylinders."""
 
 
 @generate.command("ls")
@@ -98,10 +103,19 @@ def generate_ls(
     show_default=True,
     help="Stop once the soft-sphere pressure is at or below this (energy / mean diameter^d).",
 )
+@click.option(
+    "--minimiser",
+    type=click.Choice(QUENCH_MINIMISERS),
+    default="auto",
+    show_default=True,
+    help="Minimiser of the enthalpy: FIRE, L-BFGS, or auto (chosen by the dimension, "
+    "docs/generators.md).",
+)
 @checkpoint_option
 @output_path()
 @output_options
-def generate_quench(n, d, distribution, ratio, std, seed, pressure, checkpoint, output, out):
+def generate_quench(n, d, distribution, ratio, std, seed, pressure, minimiser, checkpoint,
+                    output, out):
     """Soft-sphere quench to a vanishing pressure, then shrunk to hard contact.
 
     The start of a large packing: `calippso jam OUTPUT --network OUTPUT` certifies its
@@ -113,7 +127,8 @@ def generate_quench(n, d, distribution, ratio, std, seed, pressure, checkpoint, 
 
     sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
     generation = generators.soft_quench(sizes, d, seed=seed, target_pressure=pressure,
-                                        progress=out.progress, checkpoint=checkpoint)
+                                        progress=out.progress, checkpoint=checkpoint,
+                                        minimiser=minimiser)
     packing = generation.packing
     if output.suffix.lower() == ".npz" and generation.contacts is not None:
         save_npz_atomic(output, {"positions": packing.positions, "diameters": packing.diameters,
@@ -121,7 +136,9 @@ def generate_quench(n, d, distribution, ratio, std, seed, pressure, checkpoint, 
         written = output
     else:
         written = calippso.write(packing, output)
-    return _generation_record("quench", generation, written)
+    record, text = _generation_record("quench", generation, written)
+    record["minimiser"] = generation.extra["minimiser"]
+    return record, f"{text} [{record['minimiser']}]"
 
 
 @generate.command("fb")
