@@ -80,8 +80,10 @@ PAUSE_STEPS = 1000
 #: The minimisers `soft_quench` offers ("auto" picks one by the dimension).
 MINIMISERS = ("auto", "fire", "lbfgs")
 #: With minimiser="auto", L-BFGS from this dimension on, FIRE below. In d = 4 and 5 (N = 1024,
-#: seeds 1–5) L-BFGS took 28 % and 58 % fewer force evaluations than FIRE and its slowest
-#: run 3.8 times fewer in d = 5; in d = 3 (N = 4096) as many, each 1.3 times dearer.
+#: seeds 1–5) L-BFGS took fewer force evaluations than FIRE took steps, and its slowest run
+#: fewer in d = 5. In d = 3 neither is faster at every N (seed 1, quench s, FIRE / L-BFGS:
+#: 11 / 33 at N = 2048, 410 / 531 at 4096, 1334 / 233 at 8192, 977 / 1235 at 16384), and
+#: each L-BFGS evaluation costs 1.3–1.7 FIRE steps (docs/generators.md, Run time).
 LBFGS_FROM_DIMENSION = 4
 
 
@@ -349,15 +351,16 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     the pressure controlled directly: uniform random centres in a cubic box at `phi_start`,
     with the harmonic repulsion V = ε/2 (1 − r/σ)² for r < σ, are brought to enthalpy minima
     H = E + p* V by FIRE 2.0 (Δt_max = 5 Δt0) or L-BFGS (`minimiser`), the diameter scale
-    being one more degree of freedom. The pressures p* go down from 1e-2 in equal factors of at most 10 to half of
-    `target_pressure`. At fixed pressure a minimum always exists, so no step can unjam (at
-    fixed density, decompression steps near p → 0 unjammed and slid towards zero energy for
-    up to 4e5 FIRE steps each). Minima are converged to forces of 1e-4 of the mean pair
-    force; the last one then decade by decade until its overlap network (rattlers removed)
-    is the same two decades in a row and not hypostatic, or `force_tolerance` is reached.
-    Finally all diameters shrink by one factor until the most overlapping pair has a gap of
-    1e-12: the overlap network becomes the contact network of a nearby hard-sphere jamming
-    point, returned as `contacts` for ``calippso.jam(packing, network=contacts)``.
+    being one more degree of freedom. The pressures p* go down from 1e-2 in equal factors of
+    at most 10 to half of `target_pressure`. At fixed pressure a minimum always exists, so
+    no step can unjam (at fixed density, decompression steps near p → 0 unjammed and slid
+    towards zero energy for up to 4e5 FIRE steps each). Minima are converged to forces of
+    1e-4 of the mean pair force; the last one then decade by decade until its overlap
+    network (rattlers removed) is the same two decades in a row and not hypostatic, or
+    `force_tolerance` is reached. Finally all diameters shrink by one factor until the most
+    overlapping pair has a gap of 1e-12: the overlap network becomes the contact network of
+    a nearby hard-sphere jamming point, returned as `contacts` for
+    ``calippso.jam(packing, network=contacts)``.
 
     Parameters
     ----------
