@@ -774,6 +774,10 @@ class _Jammer:
             self.history.correct_min_gap(shrink.min_gap)
         gap = isostaticity_gap(network.n_contacts, network.n_stable, self.d,
                                self.boundaries.zero_modes)
+        if self.wall_axes and converged and gap < 0:
+            self.history.note(f"not a certified jamming point: the LPs converged between walls "
+                              f"with a hypostatic network (gap {gap:+d}), a floppy mode that "
+                              f"moving particles out of their layers did not remove")
         notes = self._final_notes(reason)
         return JammingResult(
             packing=self.packing(), contacts=contacts[order], forces=forces / mean_force,
