@@ -2,13 +2,16 @@
 chooses the contacts, Newton solves them, and a few rounds repair what is off.
 
 Round 0 takes a candidate from `calippso.network_guess` (pairs that may be hyperstatic by a
-few, or a few pairs off the jammed network). A candidate that is isostatic as it is (a hint
-that names exactly the contacts) goes straight to Newton and the pivots of step 4. Each round
+few, or a few pairs off the jammed network). When ``pivots`` is on, a candidate that is
+isostatic as it is (a hint that names exactly the contacts) goes straight to Newton and the
+pivots of step 4, and one that is hypostatic (a hint that misses contacts) first closes its
+floppy modes (`calippso.floppy_modes`). Each round
 
 1. keeps the candidate pairs with a positive multiplier at the optimum of the CALiPPSO LP
    restricted to them (`calippso.restricted_lp`): an isostatic network;
 2. solves its contact equations by Newton (`calippso.newton`), from the input in the
-   first round and from the previous round's jamming point after that;
+   first round and from the previous round's jamming point after that (a hypostatic
+   network, with ``pivots``, closes its floppy modes first);
 3. accepts the network when every force is positive and no other pair of stable particles
    overlaps at that jamming point;
 4. when no other pair overlaps but some forces are not positive, and ``pivots`` is on,
@@ -35,6 +38,7 @@ import numpy as np
 
 from .contacts import isostaticity_gap, remove_rattlers
 from .neighbors import NeighborSearch, Pairs
+from .floppy_modes import close_floppy_modes
 from .network_guess import CANDIDATE_GAP, Candidate
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .packing import minimum_image
@@ -117,10 +121,13 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
     """
     n = search.positions.shape[0]
     current, base, near_gap = search, candidate.pairs, candidate.near_gap
+    if not pivots and _isostaticity_gap(base, n, d) < 0:
+        return None, "the candidate misses contacts (its floppy modes close with pivots only)"
     pairs, opened, failure = base, -1, ""
     for round_number in range(1, MAX_ROUNDS + 1):
-        # an isostatic candidate leaves the restricted LP no choice: pivots repair it instead
-        direct = pivots and round_number == 1 and _isostatic(pairs, n, d)
+        # an isostatic or hypostatic candidate leaves the restricted LP no choice: the
+        # floppy modes close and the pivots repair it instead
+        direct = pivots and round_number == 1 and _solvable_as_it_is(pairs, n, d)
         closed, failure = ((np.ones(len(pairs), dtype=bool), "") if direct
                            else lp_network(pairs, n, d))
         if closed is None:
@@ -134,10 +141,21 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
             opened = int(len(pairs) - closed.sum())
         rattlers, kept = remove_rattlers(n, d, pairs.i[closed], pairs.j[closed])
         i, j = pairs.i[closed][kept], pairs.j[closed][kept]
-        if isostaticity_gap(i.shape[0], int(n - rattlers.sum()), d) != 0:
+        missing = -isostaticity_gap(i.shape[0], int(n - rattlers.sum()), d)
+        closure = None
+        if missing > 0 and pivots:
+            closure, failure = close_floppy_modes(current.positions, current.diameters,
+                                                  search.box, i, j)
+            if closure is None and direct:
+                continue   # the restricted LP reads farther pairs instead
+            if closure is None:
+                return None, f"the network misses {missing} contact(s): {failure}"
+            i, j, rattlers, refined = closure.i, closure.j, closure.rattlers, closure.refinement
+        elif missing != 0:
             return None, "the restricted LP's network is not isostatic"
-        refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
-                                   ~rattlers)
+        else:
+            refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
+                                       ~rattlers)
         if refined is None and direct:
             continue   # the restricted LP chooses from the same pairs
         if refined is None:
@@ -146,10 +164,13 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         near = _near_pairs(current, near_gap)
         overlap = _overlaps_outside(near, i, j, rattlers).any()
         path = None
-        if pivots and not refined.positive and not overlap:
+        if pivots and (closure is not None or not refined.positive) and not overlap:
             path, failure = pivot_to_jamming(current.positions, current.diameters,
                                              search.box, i, j, rattlers, refined=refined,
                                              max_pivots=ROUND_PIVOTS)
+            if path is not None and closure is not None:
+                path = replace(path, closed=closure.closed,
+                               seconds=path.seconds + closure.seconds)
             if path is not None:   # the next round starts where the pivots stopped
                 i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement
                 current = NeighborSearch(refined.positions, refined.diameters, search.box)
@@ -167,10 +188,19 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
     return None, f"not settled in {MAX_ROUNDS} rounds ({failure})"
 
 
-def _isostatic(pairs: Pairs, n: int, d: int) -> bool:
-    """Whether the pairs form an isostatic network as they are (no pair of a rattler)."""
+def _isostaticity_gap(pairs: Pairs, n: int, d: int) -> int:
+    """Contacts less d (N_s − 1) + 1 once the rattlers of the pairs leave."""
     rattlers, kept = remove_rattlers(n, d, pairs.i, pairs.j)
-    return bool(kept.all()) and isostaticity_gap(len(pairs), int(n - rattlers.sum()), d) == 0
+    return isostaticity_gap(int(kept.sum()), int(n - rattlers.sum()), d)
+
+
+def _solvable_as_it_is(pairs: Pairs, n: int, d: int) -> bool:
+    """Whether the pairs need no choice by the restricted LP: an isostatic network as they are
+    (no pair of a rattler), or a hypostatic one once its rattlers leave (its floppy modes
+    close, `calippso.floppy_modes`)."""
+    rattlers, kept = remove_rattlers(n, d, pairs.i, pairs.j)
+    gap = isostaticity_gap(int(kept.sum()), int(n - rattlers.sum()), d)
+    return gap < 0 or (gap == 0 and bool(kept.all()))
 
 
 def _from_input(refined: Refinement, search: NeighborSearch,

@@ -24,6 +24,7 @@ import numpy as np
 
 from .contacts import isostaticity_gap, remove_rattlers
 from .neighbors import NeighborSearch, Pairs
+from .floppy_modes import MAX_CLOSURES
 from .restricted_lp import MAX_OPEN_CONTACTS
 
 __all__ = ["CANDIDATE_GAP", "Candidate", "candidate_networks", "check_network_hint"]
@@ -51,7 +52,8 @@ NEAR_PAIR_FACTOR = 32.0
 #: A candidate read from the gap spectrum that is hyperstatic by more than this many contacts
 #: is not tried: such a network is a crystal or a compressed state, not a jamming point with
 #: a few near-contacts. (A hint is tried whatever its excess, up to the limit of
-#: `calippso.restricted_lp`.)
+#: `calippso.restricted_lp`, and when it misses contacts, up to the floppy modes that
+#: `calippso.floppy_modes` closes.)
 MAX_EXCESS_CONTACTS = 12
 
 
@@ -117,8 +119,9 @@ def candidate_networks(search: NeighborSearch, d: int,
     Returns
     -------
     list of Candidate
-        Distinct candidates that are not hypostatic after rattler removal, and hyperstatic by
-        at most `MAX_EXCESS_CONTACTS` when read from the gap spectrum: the hint's; the
+        Distinct candidates that are neither hypostatic after rattler removal nor
+        hyperstatic by more than `MAX_EXCESS_CONTACTS` when read from the gap spectrum (a
+        hint may miss up to `calippso.floppy_modes.MAX_CLOSURES` contacts): the hint's; the
         fewest closest pairs that make an isostatic network, if all their gaps are below
         `NEAR_CONTACT_GAP`; then one per split of the gap spectrum (the `SPLITS_TRIED`
         largest jumps). Empty when nothing qualifies.
@@ -144,8 +147,10 @@ def candidate_networks(search: NeighborSearch, d: int,
     seen: set[bytes] = set()
     for candidate in candidates:
         excess = _excess(candidate.pairs, n, d)
-        limit = MAX_OPEN_CONTACTS if candidate.source == "hint" else MAX_EXCESS_CONTACTS
-        if 0 <= excess <= limit and candidate.key not in seen:
+        hinted = candidate.source == "hint"
+        limit = MAX_OPEN_CONTACTS if hinted else MAX_EXCESS_CONTACTS
+        lowest = -MAX_CLOSURES if hinted else 0
+        if lowest <= excess <= limit and candidate.key not in seen:
             seen.add(candidate.key)
             unique.append(candidate)
     return unique
@@ -195,7 +200,8 @@ def _near_gap(pairs: Pairs) -> float:
 
 
 def _excess(pairs: Pairs, n: int, d: int) -> int:
-    """The isostaticity gap of the pairs after rattler removal; −1 if nothing is stable."""
+    """The isostaticity gap of the pairs after rattler removal; below −`MAX_CLOSURES` (never
+    a candidate) if nothing is stable."""
     rattlers, kept = remove_rattlers(n, d, pairs.i, pairs.j)
     n_stable = int(n - rattlers.sum())
-    return isostaticity_gap(int(kept.sum()), n_stable, d) if n_stable else -1
+    return isostaticity_gap(int(kept.sum()), n_stable, d) if n_stable else -MAX_CLOSURES - 1

@@ -148,6 +148,9 @@ class PivotPath:
     jammed : bool
         Every force is positive: the path reached a jamming point. False: the path stopped
         (why is returned beside it) at this vertex, no lower in Γ than its start.
+    closed : tuple of (int, int)
+        The pairs that closed the floppy modes of a hypostatic start before the first pivot
+        (`calippso.floppy_modes`), in order; empty when the start was isostatic.
     """
 
     i: np.ndarray
@@ -158,6 +161,7 @@ class PivotPath:
     factorizations: int
     seconds: float
     jammed: bool = True
+    closed: tuple[tuple[int, int], ...] = ()
 
     @property
     def pivots(self) -> int:
@@ -305,7 +309,7 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
 
     while True:
         search = NeighborSearch(vertex.refinement.positions, vertex.refinement.diameters, box)
-        overlapping = int(np.sum(_outside_pairs(search, vertex, NEAR_GAP).gaps
+        overlapping = int(np.sum(outside_pairs(search, vertex.keys, vertex.stable, NEAR_GAP).gaps
                                  < -NEWTON_OVERLAP_TOLERANCE))
         if overlapping:
             return None, f"{overlapping} other pair(s) overlap"
@@ -379,7 +383,7 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
         c_pair = search.pairs_of(np.array([c_i]), np.array([c_j]))
         if _closing_rates(c_pair, direction)[0] <= 0:
             return None, "the released contact does not open along its floppy mode"
-    ratio_test = _ratio_test(search, _Vertex(i_a, j_a, stable, vertex.refinement), direction)
+    ratio_test = find_closing_pairs(search, i_a * n + j_a, stable, direction)
     if ratio_test is None:
         return None, "the floppy mode closes no pair near contact"
     near, steps, candidates = ratio_test
@@ -406,8 +410,8 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
             refined = replace(refined, forces=refined.forces[kept])
         now_stable = ~now_rattlers
         moved = NeighborSearch(refined.positions, refined.diameters, search.box)
-        if np.any(_outside_pairs(moved, _Vertex(i_new, j_new, now_stable, refined),
-                                 NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
+        if np.any(outside_pairs(moved, i_new * n + j_new, now_stable,
+                                NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
             continue
         separated = _rattlers_out_of_the_way(moved, refined, now_stable)
         if separated is None:   # a cage closed on its rattler before this pair closed
@@ -481,8 +485,8 @@ def _rejoin_caged(moved: NeighborSearch, vertex: _Vertex, i_a: np.ndarray, j_a: 
         growth = float(np.mean(refined.diameters / diameters)) - 1.0
         after = NeighborSearch(refined.positions, refined.diameters, moved.box)
         candidate = _Vertex(i_new, j_new, joined, refined)
-        if (growth < -DEGENERATE_STEP or np.any(
-                _outside_pairs(after, candidate, NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE)):
+        overlaps = outside_pairs(after, candidate.keys, joined, NEAR_GAP).gaps
+        if growth < -DEGENERATE_STEP or np.any(overlaps < -NEWTON_OVERLAP_TOLERANCE):
             continue
         separated = _rattlers_out_of_the_way(after, refined, joined)
         if separated is None:
@@ -494,22 +498,30 @@ def _rejoin_caged(moved: NeighborSearch, vertex: _Vertex, i_a: np.ndarray, j_a: 
 
 def _rattlers_out_of_the_way(search: NeighborSearch, refined: Refinement,
                              stable: np.ndarray) -> Refinement | None:
-    """`refined` with the rattlers moved out of the moved cages
-    (`calippso.rattlers.separate_rattlers`) when a pair with a rattler overlaps; None when a
-    cage has closed on its rattler."""
+    """`refined` (the configuration of `search`) with its rattlers cleared of the moved cages
+    (`clear_rattlers`); None when a cage has closed on its rattler."""
+    cleared = clear_rattlers(search, stable)
+    return None if cleared is None else replace(refined, positions=cleared)
+
+
+def clear_rattlers(search: NeighborSearch, stable: np.ndarray) -> np.ndarray | None:
+    """The positions of `search` with the rattlers (not `stable`) moved out of the cages that
+    overlap them (`calippso.rattlers.separate_rattlers`, within `RATTLER_REACH`), shape
+    (N, d); the positions themselves when nothing overlaps; None when a cage has closed on
+    its rattler."""
     close = search.pairs_near_contact()
     with_rattler = ~stable[close.i] | ~stable[close.j]
     overlapping = with_rattler & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
     if not np.any(overlapping):
-        return refined
+        return search.positions
     # the rattlers that overlap move first (a small LP), all rattlers if they cannot
     involved = np.zeros_like(stable)
     involved[close.i[overlapping]] = involved[close.j[overlapping]] = True
     for movable in (involved & ~stable, ~stable):
-        separated = separate_rattlers(refined.positions, refined.diameters, search.box,
+        separated = separate_rattlers(search.positions, search.diameters, search.box,
                                       movable, reach=RATTLER_REACH)
         if separated is not None:
-            return replace(refined, positions=separated)
+            return separated
     return None
 
 
@@ -550,11 +562,11 @@ def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: n
     target[gamma_row] = 1.0
     factors = None if basis is None else basis.factors_for(matrix, tuple(sorted(
         set(swapped) | {gamma_row})))
-    solution = None if factors is None else _refined_solve(matrix, factors, target)
+    solution = None if factors is None else refined_solve(matrix, factors, target)
     made = None
     if solution is None:   # no factors, or too far from K: factorise K itself
         factors = factorize(matrix.tocsc(), strict=False)
-        solution = None if factors is None else _refined_solve(matrix, factors, target)
+        solution = None if factors is None else refined_solve(matrix, factors, target)
         made = (factors, matrix)
     if solution is None:
         return None
@@ -564,7 +576,7 @@ def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: n
     return mode, made
 
 
-def _refined_solve(matrix: sp.csr_matrix, factors: Factors,
+def refined_solve(matrix: sp.csr_matrix, factors: Factors,
                    rhs: np.ndarray) -> np.ndarray | None:
     """The solution of matrix x = rhs from factors of a nearby matrix, by iterative
     refinement to a componentwise backward error of `REFINEMENT_TOLERANCE` (as
@@ -582,10 +594,11 @@ def _refined_solve(matrix: sp.csr_matrix, factors: Factors,
     return None
 
 
-def _ratio_test(search: NeighborSearch, released: _Vertex,
-                mode: np.ndarray) -> tuple[Pairs, np.ndarray, np.ndarray] | None:
-    """The pairs outside the `released` network that close along the floppy mode, in the
-    order to try them (Harris's choice first, `_harris_choice`, then by step and key).
+def find_closing_pairs(search: NeighborSearch, keys: np.ndarray, stable: np.ndarray,
+                       mode: np.ndarray) -> tuple[Pairs, np.ndarray, np.ndarray] | None:
+    """The ratio test: the pairs of stable particles outside a network (pair keys
+    i N + j, shape (M,)) that close along its floppy mode, in the order to try them
+    (Harris's choice first, `_harris_choice`, then by step and key).
 
     Pairs within `NEAR_GAP` of contact are read first, farther ones (up to `MAX_NEAR_GAP`)
     while the first step could close a pair beyond them (`_reach`).
@@ -596,10 +609,10 @@ def _ratio_test(search: NeighborSearch, released: _Vertex,
         The pairs read, their inflation steps δ_q (+inf for pairs that open), and the
         indices of the closing pairs in the order to try; None when no pair closes.
     """
-    n = released.stable.shape[0]
+    n = stable.shape[0]
     near_gap = NEAR_GAP
     while True:
-        near = _outside_pairs(search, released, near_gap)
+        near = outside_pairs(search, keys, stable, near_gap)
         steps = _closing_steps(near, mode)
         order = np.lexsort((near.i * n + near.j, steps))   # smallest step, then Bland
         order = order[np.isfinite(steps[order])]
@@ -650,12 +663,14 @@ def _reach(step: float, mode: np.ndarray, search: NeighborSearch) -> float:
     return step * (0.5 + 2.0 * largest_move / float(search.diameters.min()))
 
 
-def _outside_pairs(search: NeighborSearch, vertex: _Vertex, near_gap: float) -> Pairs:
-    """The pairs of stable particles within `near_gap` of contact that are not contacts."""
-    n = vertex.stable.shape[0]
+def outside_pairs(search: NeighborSearch, keys: np.ndarray, stable: np.ndarray,
+                  near_gap: float) -> Pairs:
+    """The pairs of `stable` particles within `near_gap` of contact that are not contacts
+    (pair keys i N + j, shape (M,))."""
+    n = stable.shape[0]
     pairs = search.pairs_within(float(search.diameters.max()) * (1.0 + near_gap))
-    outside = (~np.isin(pairs.i * n + pairs.j, vertex.keys) & vertex.stable[pairs.i]
-               & vertex.stable[pairs.j] & (pairs.gaps < near_gap))
+    outside = (~np.isin(pairs.i * n + pairs.j, keys) & stable[pairs.i]
+               & stable[pairs.j] & (pairs.gaps < near_gap))
     return pairs.subset(outside)
 
 
@@ -686,11 +701,20 @@ def _from_start(refined: Refinement, positions: np.ndarray, diameters: np.ndarra
 
 
 def describe_path(path: PivotPath) -> str:
-    """One clause on a path for the run's notes: pivots, time, contacts swapped, largest
-    growth of one pivot."""
+    """One clause on a path for the run's notes: floppy modes closed, pivots, time, contacts
+    swapped, largest growth of one pivot."""
+    closed = ""
+    if path.closed:
+        pairs = ", ".join(f"{pair}" for pair in path.closed[:LISTED_SWAPS])
+        more = f" and {len(path.closed) - LISTED_SWAPS} more" if len(
+            path.closed) > LISTED_SWAPS else ""
+        closed = (f"{len(path.closed)} floppy mode(s) of the hypostatic network closed "
+                  f"(pairs {pairs}{more}), then ")
     listed = ", ".join(f"{swap.released}->{swap.closed}" for swap in path.swaps[:LISTED_SWAPS])
     more = f" and {path.pivots - LISTED_SWAPS} more" if path.pivots > LISTED_SWAPS else ""
     degenerate = f" ({path.degenerate} degenerate)" if path.degenerate else ""
-    return (f"{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s repaired the "
-            f"network's non-positive forces (released->closed: {listed}{more}; largest growth "
-            f"of one pivot sqrt(Gamma)-1 = {path.largest_growth:.1e})")
+    if not path.pivots:
+        return f"{closed}no contact pivot was needed ({path.seconds:.2f} s)"
+    return (f"{closed}{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s "
+            f"repaired the network's non-positive forces (released->closed: {listed}{more}; "
+            f"largest growth of one pivot sqrt(Gamma)-1 = {path.largest_growth:.1e})")

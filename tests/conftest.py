@@ -66,6 +66,19 @@ def mls_jammed():
 
 
 @pytest.fixture(scope="session")
+def ls_jammed():
+    """An LS packing at p = 1e7 (d = 3, N = 64) jammed by the LP path (no network first)."""
+    import generators
+    from calippso import jam
+
+    sizes = generators.diameters.monodisperse(64)
+    start = generators.lubachevsky_stillinger(sizes, d=3, target_pressure=1e7, seed=3).packing
+    result = jam(start, network_first="off")
+    assert_jammed(result)
+    return result
+
+
+@pytest.fixture(scope="session")
 def shared_data() -> Path:
     """The folder of real packings made by other codes (skips the test if absent)."""
     if not SHARED_DATA.is_dir():

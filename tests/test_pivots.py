@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import generators
 from calippso import JammingError, Packing, StopReason, jam
 from calippso.neighbors import NeighborSearch
 from calippso.newton import refine_isostatic
@@ -31,13 +30,9 @@ TOUCHING_ITERATIONS = 30
 
 
 @pytest.fixture(scope="module")
-def source():
-    """An LS packing at p = 1e7 (d = 3, N = 64) jammed by the LP path, in mean diameters."""
-    sizes = generators.diameters.monodisperse(64)
-    start = generators.lubachevsky_stillinger(sizes, d=3, target_pressure=1e7, seed=3).packing
-    result = jam(start, network_first="off")
-    assert_jammed(result)
-    return result
+def source(ls_jammed):
+    """An LS packing at p = 1e7 (d = 3, N = 64) jammed by the LP path."""
+    return ls_jammed
 
 
 def in_mean_diameters(packing: Packing) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
