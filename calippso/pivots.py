@@ -8,8 +8,9 @@ exact geometry, one contact at a time, as the simplex method moves from vertex t
 
 1. **Certify.** Every force positive: the point is the jamming point (the caller still runs
    the certificate of `calippso.network.certify_network`).
-2. **Release** a contact c with y_c ≤ 0 (the most negative one; smallest pair key while the
-   path is degenerate, Bland's rule, so that it cannot cycle). The network A = C ∖ c, less
+2. **Release** a contact c with y_c ≤ 0 (the most negative one, or the next ones when its
+   release gives no pivot; smallest pair key while the path is degenerate, Bland's rule, so
+   that it cannot cycle). The network A = C ∖ c, less
    the particles it leaves with only d contacts (rattlers, removed recursively with their
    contacts), has exactly one floppy mode t: J_A t = 0, normalised to dΓ = 1. Along it c
    opens, because y_cᵀ (J_C t)_c = −dΓ, and Γ grows.
@@ -98,6 +99,10 @@ HARRIS_SLACK = 1e-12
 #: Pairs of the ratio test tried in turn, when Newton's vertex for the first one overlaps
 #: another pair (the curve is not the line of the prediction).
 RATIO_CANDIDATES = 4
+#: Contacts with non-positive forces tried in turn (most negative first) when releasing one
+#: gives no pivot: its released network is singular (a floppy cluster held by a redundant
+#: contact), or its floppy mode closes no pair. Any of them may leave: Γ grows along each.
+LEAVING_TRIES = 5
 
 
 @dataclass(frozen=True)
@@ -317,11 +322,13 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
             return ended(True), ""
         if len(swaps) >= max_pivots:
             return ended(False), f"no jamming point within {max_pivots} pivots"
-        released = _leaving_contact(vertex, bland=degenerate)
-        step, failure = _pivot(search, vertex, released)
-        if step is None and failure == CAGE_CLOSED:
-            # the particles the release left with d contacts stay in the network
-            step, failure = _pivot(search, vertex, released, attached=True)
+        for released in _leaving_contacts(vertex, bland=degenerate)[:LEAVING_TRIES]:
+            step, failure = _pivot(search, vertex, int(released))
+            if step is None and failure == CAGE_CLOSED:
+                # the particles the release left with d contacts stay in the network
+                step, failure = _pivot(search, vertex, int(released), attached=True)
+            if step is not None:
+                break
         if step is None:
             return (ended(False) if swaps else None), failure
         next_vertex, swap, solves = step
@@ -674,15 +681,15 @@ def outside_pairs(search: NeighborSearch, keys: np.ndarray, stable: np.ndarray,
     return pairs.subset(outside)
 
 
-def _leaving_contact(vertex: _Vertex, bland: bool) -> int:
-    """The contact to release: the most negative force, or on a degenerate stretch of the
-    path the non-positive force of smallest pair key (Bland's rule)."""
+def _leaving_contacts(vertex: _Vertex, bland: bool) -> np.ndarray:
+    """The contacts to release, in the order to try them: the non-positive forces, most
+    negative first; on a degenerate stretch of the path only the one of smallest pair key
+    (Bland's rule)."""
     forces = vertex.refinement.forces
-    threshold = MIN_FORCE_RATIO * float(forces.max())
+    candidates = np.flatnonzero(forces <= MIN_FORCE_RATIO * float(forces.max()))
     if bland:
-        candidates = np.flatnonzero(forces <= threshold)
-        return int(candidates[np.argmin(vertex.keys[candidates])])
-    return int(np.argmin(forces))
+        return candidates[[np.argmin(vertex.keys[candidates])]]
+    return candidates[np.argsort(forces[candidates], kind="stable")]
 
 
 def _network_digest(vertex: _Vertex) -> bytes:
