@@ -33,7 +33,7 @@ out of the way when a moved cage overlaps them.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -182,22 +182,13 @@ def _close_one(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: np.
         cleared = clear_rattlers(moved, stable)
         if cleared is None:
             return None, "a rattler's cage closed along the floppy modes"
-        if cleared is not positions:
+        if cleared is not moved.positions:   # rattlers moved out of the way
             moved = NeighborSearch(cleared, diameters, search.box)
             if refinement is not None:
-                refinement = _with_positions(refinement, cleared)
+                refinement = replace(refinement, positions=cleared)
         pair = (int(near.i[closing]), int(near.j[closing]))
         return (moved, i_new, j_new, pair, refinement), ""
     return None, "no closing pair gave a point without overlap"
-
-
-def _with_positions(refinement: Refinement, positions: np.ndarray) -> Refinement:
-    return Refinement(positions=positions, diameters=refinement.diameters,
-                      forces=refinement.forces, iterations=refinement.iterations,
-                      factorizations=refinement.factorizations,
-                      sqrt_gamma_minus_1=refinement.sqrt_gamma_minus_1,
-                      max_displacement=refinement.max_displacement,
-                      residual=refinement.residual, factorization=refinement.factorization)
 
 
 def _phi(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np.ndarray,
@@ -228,13 +219,14 @@ def _least_norm_solve(jacobian: sp.csr_matrix, rhs: np.ndarray,
     it: `factors` (of a nearby system) when their refined solve reaches round-off, else new
     ones. None when the system is singular (J has a self-stress)."""
     system = _least_norm_system(jacobian)
+    rows = system.tocsr()
     full_rhs = np.concatenate([np.zeros(jacobian.shape[1]), rhs])
     if factors is not None:
-        solution = refined_solve(system.tocsr(), factors, full_rhs)
+        solution = refined_solve(rows, factors, full_rhs)
         if solution is not None:
             return solution[:jacobian.shape[1]], factors
     factors = factorize(system, strict=False)
-    solution = None if factors is None else refined_solve(system.tocsr(), factors, full_rhs)
+    solution = None if factors is None else refined_solve(rows, factors, full_rhs)
     return None if solution is None else (solution[:jacobian.shape[1]], factors)
 
 
