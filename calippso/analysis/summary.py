@@ -12,8 +12,10 @@ from ._inputs import as_results
 from .exponents import UPPER, Exponent, exponent_from_sample, resolve_models, window_scan
 from .forces import DEFAULT_RULE, bucklers, canonical_rule, split_forces
 from .gaps import DEFAULT_MAX_GAP, pooled_gaps
+from .layering import DensityProfile, pooled_density_profile
 from .sample import PooledSample
 from .structure import ContactStatistics, contact_statistics
+from .wall_forces import pooled_wall_forces, wall_force_summary, wall_load_rows
 
 __all__ = ["Analysis", "analyze"]
 
@@ -42,6 +44,15 @@ class Analysis:
     window_scans : dict of str to list of dict
         Per exponent, the value fitted with the window top moved over 3 decades
         (`calippso.analysis.exponents.window_scan`): the check of the window rule.
+    wall_forces : PooledSample or None
+        Forces on the walls, in units of the mean particle–particle force of their packing
+        (`calippso.analysis.wall_forces`); None when no packing has walls. `forces` never
+        holds them.
+    wall_loads : list of dict
+        Per packing and walled axis: wall contacts, loads and pressures on its two walls.
+    layering : DensityProfile or None
+        Packing fraction against the distance from the nearest wall, pooled
+        (`calippso.analysis.layering`); None when no packing has walls.
     """
 
     contacts: ContactStatistics
@@ -54,6 +65,9 @@ class Analysis:
     rule: str
     wall_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
     window_scans: dict[str, list[dict]] = field(default_factory=dict)
+    wall_forces: PooledSample | None = None
+    wall_loads: list[dict] = field(default_factory=list)
+    layering: DensityProfile | None = None
 
     def to_dict(self) -> dict:
         """The summary as plain numbers (JSON-ready)."""
@@ -84,7 +98,17 @@ class Analysis:
             "exponents": {name: e.to_dict() for name, e in self.exponents.items()},
             "exponent_errors": dict(self.exponent_errors),
             "window_scan": {name: list(rows) for name, rows in self.window_scans.items()},
+            **({} if self.layering is None else {"walls": self._walls_dict()}),
         }
+
+    def _walls_dict(self) -> dict:
+        """The walls' part of the summary: wall forces (units of the mean particle–particle
+        force), loads and pressures per wall, the layering profile (distance in mean
+        diameters)."""
+        return {"wall_forces": wall_force_summary(self.wall_forces),
+                "loads": [dict(row) for row in self.wall_loads],
+                "layering": {"distance": self.layering.distance.tolist(),
+                             "phi": self.layering.phi.tolist()}}
 
 
 def analyze(results: JammingResult | Iterable[JammingResult], *,
@@ -114,7 +138,8 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
     -------
     Analysis
         An exponent whose fit window holds too few points is left out of `exponents`, with
-        the reason in `exponent_errors`.
+        the reason in `exponent_errors`. Packings with walls add the wall forces, loads and
+        the layering profile of those packings.
     """
     items = as_results(results)
     rule = canonical_rule(rule)
@@ -135,10 +160,14 @@ def analyze(results: JammingResult | Iterable[JammingResult], *,
                                                    model=models[name], **fit_options)
         except ValueError as error:
             errors[name] = str(error)
+    walled = [r for r in items if not r.packing.boundaries.is_periodic]
     return Analysis(
         contacts=contact_statistics(items), gaps=gaps, forces=forces, exponents=exponents,
         exponent_errors=errors,
         n_bucklers=int(sum(np.count_nonzero(bucklers(r)) for r in items)),
         max_gap=float(max_gap), rule=rule,
         wall_times=np.array([r.wall_time for r in items], dtype=np.float64),
-        window_scans=scans)
+        window_scans=scans,
+        wall_forces=pooled_wall_forces(walled) if walled else None,
+        wall_loads=wall_load_rows(items),
+        layering=pooled_density_profile(walled) if walled else None)

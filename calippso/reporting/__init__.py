@@ -16,12 +16,12 @@ from ..analysis._inputs import as_results
 from ..analysis.gaps import DEFAULT_MAX_GAP
 from ..result import JammingResult
 from ._matplotlib import pyplot
-from .figures import plot_contact_numbers, plot_forces, plot_gaps, plot_history
+from .figures import plot_contact_numbers, plot_forces, plot_gaps, plot_history, plot_walls
 from .page import markdown
 from .summary import summary_dict, write_json
 
 __all__ = ["report", "plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history",
-           "pyplot"]
+           "plot_walls", "pyplot"]
 
 
 def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.PathLike, *,
@@ -32,7 +32,10 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
 
     Files written: ``summary.json`` (φ, z, rattlers, isostaticity, exponents with intervals,
     one record per run), ``forces.png``, ``gaps.png``, ``contact_numbers.png``,
-    ``history/run_<k>.png`` (error against wall time, one per run) and ``report.md``.
+    ``history/run_<k>.png`` (error against wall time, one per run) and ``report.md``. When a
+    packing has walls, also ``walls.png`` (wall forces and the layering profile) and a
+    "walls" entry in ``summary.json`` (wall forces, loads and pressures, layering); the force
+    distributions and exponents hold the particle–particle forces only.
 
     Parameters
     ----------
@@ -76,6 +79,8 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
     figures = {"forces": plot_forces(analysis, out / "forces.png"),
                "gaps": plot_gaps(analysis, out / "gaps.png"),
                "contacts": plot_contact_numbers(analysis, out / "contact_numbers.png")}
+    if analysis.layering is not None:
+        figures["walls"] = plot_walls(analysis, out / "walls.png")
     drawn = items if max_history_figures is None else items[:max_history_figures]
     histories = [plot_history(r, out / "history" / f"run_{k}.png",
                               title=f"run {k}: N = {r.packing.n}, d = {r.d}, {r.solver}, "

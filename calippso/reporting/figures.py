@@ -1,6 +1,6 @@
 """The report's figures: cumulative force and gap distributions with their fits, the
-contact-number histogram, and the error of one run against wall time. Each function writes one
-PNG and returns its path."""
+contact-number histogram, the error of one run against wall time, and for packings with walls
+the wall forces and the layering profile. Each function writes one PNG and returns its path."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from ..analysis.sample import PooledSample
 from ..result import JammingResult
 from ._matplotlib import pyplot
 
-__all__ = ["plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history"]
+__all__ = ["plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history", "plot_walls"]
 
 _DPI = 120
 #: Smallest value drawn on a log axis (an exact zero is drawn there).
@@ -25,6 +25,8 @@ _HEADROOM = 1.18
 _ISOSTATIC_COLOUR = "C1"
 _ISOSTATIC_WIDTH = 7.0
 _LABEL_OFFSET = 0.12
+#: Wall-force histogram: number of bins over [0, the largest force].
+_WALL_FORCE_BINS = 20
 
 
 def _save(fig, path: Path) -> Path:
@@ -70,7 +72,7 @@ def plot_forces(analysis: Analysis, path: Path) -> Path:
         if name in analysis.exponents:
             _fit_and_reference(ax, analysis.exponents[name], 1 + REFERENCE_EXPONENTS[name],
                                color, label)
-    ax.set_xlabel("f / ⟨f⟩")
+    ax.set_xlabel("f / ⟨f⟩  (particle–particle contacts; wall forces apart)")
     ax.set_ylabel("G(f)  (cumulative distribution)")
     ax.set_title(_title(analysis, "forces"))
     ax.legend(fontsize=7, loc="lower right")
@@ -161,6 +163,45 @@ def plot_history(result: JammingResult, path: Path, title: str = "") -> Path:
     bottom.set_xlabel("wall time (s, cumulative)")
     top.set_title(title or f"N = {result.packing.n}, d = {result.d}, {result.solver}: "
                   f"{result.iterations} LPs, {result.wall_time:.1f} s", fontsize=10)
+    return _save(fig, path)
+
+
+def plot_walls(analysis: Analysis, path: Path) -> Path:
+    """Left: the distribution of the wall forces beside that of the particle–particle
+    forces (both in units of the mean particle–particle force of their packing). Right: the
+    layering profile, packing fraction against the distance from the nearest wall, with the
+    packing fraction of the whole packing.
+
+    Raises
+    ------
+    ValueError
+        No packing of the analysis has walls.
+    """
+    if analysis.layering is None or analysis.wall_forces is None:
+        raise ValueError("no packing of this analysis has walls")
+    plt = pyplot()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4.2))
+    pair, wall = analysis.forces["all"].values, analysis.wall_forces.values
+    largest = max(float(pair.max()) if pair.size else 1.0,
+                  float(wall.max()) if wall.size else 1.0)
+    edges = np.linspace(0.0, largest, _WALL_FORCE_BINS + 1)
+    left.hist(pair, bins=edges, density=True, color="0.6", alpha=0.7,
+              label=f"particle–particle ({pair.size})")
+    if wall.size:
+        left.hist(wall, bins=edges, density=True, histtype="step", color="C3", lw=1.8,
+                  label=f"wall ({wall.size})")
+    left.set_xlabel("f / ⟨f⟩ (mean particle–particle force)")
+    left.set_ylabel("P(f)")
+    left.legend(fontsize=8)
+    profile = analysis.layering
+    right.plot(profile.distance, profile.phi, "-", color="k", lw=1.2, label="φ(s)")
+    right.axhline(float(np.mean(analysis.contacts.phi)), color="C1", ls="--", lw=1.2,
+                  label="φ of the packing")
+    right.set_xlabel("s, distance from the nearest wall (mean diameters)")
+    right.set_ylabel("local packing fraction φ(s)")
+    right.set_xlim(0.0, float(profile.distance[-1]))
+    right.legend(fontsize=8)
+    fig.suptitle(_title(analysis, "walls"), fontsize=10)
     return _save(fig, path)
 
 

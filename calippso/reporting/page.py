@@ -34,7 +34,8 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
     summary : dict
         `summary.summary_dict` output.
     figures : dict
-        "forces", "gaps", "contacts" → PNG paths (file names are used).
+        "forces", "gaps", "contacts" (and "walls" for packings with walls) → PNG paths (file
+        names are used).
     histories : list of Path
         One PNG per run.
     title : str
@@ -53,7 +54,7 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
         f"| isostatic packings | {summary['isostatic_packings']} / {summary['packings']} |",
         f"| bucklers (d + 1 contacts) | {summary['bucklers']} "
         f"({100 * summary['buckler_fraction']:.2f} % of stable) |",
-        f"| localised / extended forces | {summary['localized_forces']} / "
+        f"| localised / extended forces (particle–particle) | {summary['localized_forces']} / "
         f"{summary['extended_forces']} |",
         f"| jam wall time (total, mean per run) | {summary['jam_wall_time_s']['total']:.1f} s, "
         f"{summary['jam_wall_time_s']['mean']:.1f} s |",
@@ -90,6 +91,8 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
                 lines.append(f"* {symbol}: " + ", ".join(
                     f"{row['upper']:.2g}: {row['power_law']:.3f} / {row['cutoff']:.3f} "
                     f"({row['points']}, p = {row['p_value']:.2g})" for row in rows))
+    if "walls" in summary:
+        lines += _walls_section(summary["walls"], figures["walls"])
     lines += ["", "## Distributions", "",
               f"![forces]({figures['forces'].name})", "",
               f"![gaps]({figures['gaps'].name})", "",
@@ -100,3 +103,25 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
                   enumerate(histories)]
         lines.append("")
     return "\n".join(lines)
+
+
+def _walls_section(walls: dict, figure: Path) -> list[str]:
+    """The "Walls" section: wall-force statistics, loads and pressures, the figure."""
+    forces = walls["wall_forces"]
+    lines = ["", "## Walls", "",
+             "Wall contacts are kept apart: the force distributions and exponents below hold "
+             "the particle–particle forces only. Wall forces in units of the mean "
+             "particle–particle force of their packing.", "",
+             "| wall forces | count | mean | median | min | max |", "|---|---|---|---|---|---|",
+             f"| all walls | {forces['count']} | {_fmt(forces['mean'])} | "
+             f"{_fmt(forces['median'])} | {_fmt(forces['min'])} | {_fmt(forces['max'])} |"]
+    if walls["loads"]:
+        lines += ["", "| packing | axis | wall contacts | load at 0 | load at L | pressure at 0 "
+                  "| pressure at L |", "|---|---|---|---|---|---|---|"]
+        lines += [f"| {row['packing']} | {row['axis']} | {row['contacts']} | "
+                  f"{_fmt(row['load_0'])} | {_fmt(row['load_L'])} | {_fmt(row['pressure_0'])} "
+                  f"| {_fmt(row['pressure_L'])} |" for row in walls["loads"]]
+    lines += ["", "Layering: the local packing fraction against the distance from the nearest "
+              "wall (volume fraction of the spheres in shells parallel to the wall; it tends to "
+              "the bulk value far from the wall).", "", f"![walls]({figure.name})"]
+    return lines
