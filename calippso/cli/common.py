@@ -11,17 +11,24 @@ written) and `EXIT_INTERRUPTED` when interrupted.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
+import inspect
 import json
 import os
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
+from ..boundaries import CYLINDER, WALLS, Boundaries
 from ..protocols import DISTRIBUTIONS
 from ..solvers import backend_names
+
+if TYPE_CHECKING:
+    from ..packing import Packing
 
 EXIT_DATA, EXIT_USAGE, EXIT_NOT_CONVERGED = 1, 2, 3
 #: Exit code of an interrupted command (128 + SIGINT, as a shell reports it).
@@ -211,6 +218,120 @@ def solver_option(command: Callable) -> Callable:
         show_default=True,
         help="LP backend.",
     )(command)
+
+
+#: The option of each container kind.
+CONTAINER_OPTIONS = {WALLS: "--walls", CYLINDER: "--cylinder"}
+
+
+@dataclasses.dataclass(frozen=True)
+class Container:
+    """What ``--walls AXES`` or ``--cylinder AXES`` asked for: a kind and the axes as typed
+    (names "x", "y", … or numbers), made into `Boundaries` once the dimension is known."""
+
+    kind: str
+    axes: tuple[str, ...]
+
+    @property
+    def option(self) -> str:
+        """The option as typed, e.g. "--walls x,y"."""
+        return f"{CONTAINER_OPTIONS[self.kind]} {','.join(self.axes)}"
+
+    def boundaries(self, d: int) -> Boundaries:
+        """The boundaries in dimension `d` (periodic along the other axes).
+
+        Raises
+        ------
+        click.BadParameter
+            An unknown or repeated axis, or a cylinder on other than two axes.
+        """
+        axes = [int(axis) if axis.isdigit() else axis for axis in self.axes]
+        make = Boundaries.walls if self.kind == WALLS else Boundaries.cylinder
+        try:
+            return make(d, axes)
+        except ValueError as error:
+            raise click.BadParameter(str(error),
+                                     param_hint=f"'{CONTAINER_OPTIONS[self.kind]}'") from None
+
+
+def _container(kind: str) -> Callable:
+    """The click callback of ``--walls``/``--cylinder``: "x,y" to a `Container`."""
+
+    def parse(ctx: click.Context, param: click.Parameter, value: str | None):
+        if value is None:
+            return None
+        axes = tuple(axis.strip().lower() for axis in value.split(",") if axis.strip())
+        if not axes:
+            raise click.BadParameter("give the axes, e.g. x or x,y", ctx=ctx, param=param)
+        return Container(kind, axes)
+
+    return parse
+
+
+def container_options(command: Callable) -> Callable:
+    """Add ``--walls AXES`` and ``--cylinder AXES`` (passed on as ``container``: a
+    `Container`, or None for a periodic box)."""
+
+    @functools.wraps(command)
+    def wrapper(*args, walls: Container | None, cylinder: Container | None, **kwargs):
+        if walls is not None and cylinder is not None:
+            raise click.UsageError("--walls and --cylinder exclude each other: give one")
+        return command(*args, container=walls or cylinder, **kwargs)
+
+    wrapper = click.option(
+        "--cylinder", callback=_container(CYLINDER), metavar="AXES",
+        help="A cylinder: the circle inscribed in the box over these two axes (e.g. x,y), "
+        "periodic along the others.")(wrapper)
+    return click.option(
+        "--walls", callback=_container(WALLS), metavar="AXES",
+        help="Flat hard walls at 0 and L along these axes (names x, y, z, w or numbers, "
+        "comma-separated, e.g. x,y), periodic along the others.")(wrapper)
+
+
+def with_container(packing: Packing, container: Container | None, source: Path) -> Packing:
+    """`packing` with the boundaries `container` asks for.
+
+    Parameters
+    ----------
+    packing : Packing
+        Read from `source`.
+    container : Container or None
+        ``--walls``/``--cylinder``; None keeps the file's boundaries.
+    source : Path
+        The file, named in the errors.
+
+    Raises
+    ------
+    ValueError
+        The file's packing has other non-periodic boundaries than the option asks for, or a
+        particle lies outside the container asked for.
+    """
+    if container is None:
+        return packing
+    wanted = container.boundaries(packing.d)
+    if not packing.boundaries.is_periodic and packing.boundaries != wanted:
+        raise ValueError(f"{source}: the file's packing has {packing.boundaries.describe()}, "
+                         f"{container.option} asks for {wanted.describe()}")
+    with naming(source):
+        return dataclasses.replace(packing, boundaries=wanted)
+
+
+def call_with_boundaries(generator: Callable, container: Container | None, d: int, *args,
+                         **kwargs):
+    """`generator(*args, **kwargs)`, with ``boundaries=`` from `container` when one is given.
+
+    Raises
+    ------
+    ValueError
+        `container` is given and `generator` takes no ``boundaries`` (it makes periodic
+        packings only).
+    """
+    if container is None:
+        return generator(*args, **kwargs)
+    if "boundaries" not in inspect.signature(generator).parameters:
+        raise ValueError(f"{container.option}: generators.{generator.__name__} makes periodic "
+                         "packings only (it takes no boundaries yet)")
+    return generator(*args, boundaries=container.boundaries(d), **kwargs)
 
 
 def _one_line(message: str) -> str:

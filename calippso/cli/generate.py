@@ -1,4 +1,8 @@
-"""``calippso generate``: make a configuration (ls, quench, fb, mls, spherocylinders)."""
+"""``calippso generate``: make a configuration (ls, quench, fb, mls, random,
+spherocylinders).
+
+``--walls``/``--cylinder`` pass ``boundaries=`` to a generator that takes it, and are refused
+in one line by one that does not (`common.call_with_boundaries`)."""
 
 from __future__ import annotations
 
@@ -7,9 +11,12 @@ from pathlib import Path
 import click
 
 from ..protocols import make_diameters
-from .common import (checkpoint_option, diameter_options, final_growth_rate_option, naming,
-                     output_options, output_path, positive)
+from .common import (call_with_boundaries, checkpoint_option, container_options,
+                     diameter_options, final_growth_rate_option, naming, output_options,
+                     output_path, positive, with_container)
 
+#: Packing fraction of the Poisson centres of ``generate random``, before the shrink.
+RANDOM_START_PHI = 0.3
 #: Values of ``generate quench --minimiser`` (those of `generators.soft_quench`, which the
 #: command does not import before it runs).
 QUENCH_MINIMISERS = ("auto", "fire", "lbfgs")
@@ -28,10 +35,12 @@ def _generation_record(protocol: str, generation, output: Path) -> tuple[dict, s
         "steps": generation.steps,
         "wall_time": generation.wall_time,
         "status": generation.status,
+        "boundaries": str(packing.boundaries),
         "output": str(output),
     }
+    container = "" if packing.boundaries.is_periodic else f", {packing.boundaries.describe()}"
     text = (
-        f"{protocol}: N = {packing.n}, d = {packing.d}, phi = {packing.phi:.6f}, "
+        f"{protocol}: N = {packing.n}, d = {packing.d}{container}, phi = {packing.phi:.6f}, "
         f"p = {generation.reduced_pressure:.3g}, {generation.wall_time:.1f} s "
         f"({generation.status}) -> {output}"
     )
@@ -40,8 +49,8 @@ def _generation_record(protocol: str, generation, output: Path) -> tuple[dict, s
 
 @click.group()
 def generate() -> None:
-    """Make a configuration: ls, quench (soft spheres), fb, mls (closest jamming) or
-    spherocylinders."""
+    """Make a configuration: ls, quench (soft spheres), fb, mls (closest jamming), random
+    (Poisson centres shrunk to no overlap) or spherocylinders."""
 
 
 @generate.command("ls")
@@ -69,18 +78,22 @@ def generate() -> None:
     help="Reduced pressure at which --final-growth-rate takes over.",
 )
 @checkpoint_option
+@container_options
 @output_path()
 @output_options
 def generate_ls(
     n, d, distribution, ratio, std, seed, pressure, growth_rate, final_growth_rate,
-    slowdown_pressure, checkpoint, output, out
+    slowdown_pressure, checkpoint, container, output, out
 ):
     """Lubachevsky–Stillinger compression from random centres to a target pressure."""
     import calippso
     import generators
 
     sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
-    generation = generators.lubachevsky_stillinger(
+    generation = call_with_boundaries(
+        generators.lubachevsky_stillinger,
+        container,
+        d,
         sizes,
         d,
         target_pressure=pressure,
@@ -112,10 +125,11 @@ def generate_ls(
     "docs/generators.md).",
 )
 @checkpoint_option
+@container_options
 @output_path()
 @output_options
 def generate_quench(n, d, distribution, ratio, std, seed, pressure, minimiser, checkpoint,
-                    output, out):
+                    container, output, out):
     """Soft-sphere quench to a vanishing pressure, then shrunk to hard contact.
 
     The start of a large packing: `calippso jam OUTPUT --network OUTPUT` certifies its
@@ -124,15 +138,15 @@ def generate_quench(n, d, distribution, ratio, std, seed, pressure, minimiser, c
     import calippso
     import generators
     from ..atomic import save_npz_atomic
+    from ..packing import packing_arrays
 
     sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
-    generation = generators.soft_quench(sizes, d, seed=seed, target_pressure=pressure,
-                                        progress=out.progress, checkpoint=checkpoint,
-                                        minimiser=minimiser)
+    generation = call_with_boundaries(generators.soft_quench, container, d, sizes, d, seed=seed,
+                                      target_pressure=pressure, progress=out.progress,
+                                      checkpoint=checkpoint, minimiser=minimiser)
     packing = generation.packing
     if output.suffix.lower() == ".npz" and generation.contacts is not None:
-        save_npz_atomic(output, {"positions": packing.positions, "diameters": packing.diameters,
-                                 "box": packing.box, "contacts": generation.contacts})
+        save_npz_atomic(output, {**packing_arrays(packing), "contacts": generation.contacts})
         written = output
     else:
         written = calippso.write(packing, output)
@@ -150,16 +164,18 @@ def generate_quench(n, d, distribution, ratio, std, seed, pressure, minimiser, c
     show_default=True,
     help="Force-biased contraction rate τ (slower is denser).",
 )
+@container_options
 @output_path()
 @output_options
-def generate_fb(n, d, distribution, ratio, std, seed, contraction_rate, output, out):
+def generate_fb(n, d, distribution, ratio, std, seed, contraction_rate, container, output, out):
     """Force-biased packing from random centres."""
     import calippso
     import generators
 
     sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
-    generation = generators.force_biased(
-        sizes, d, contraction_rate=contraction_rate, seed=seed, progress=out.progress
+    generation = call_with_boundaries(
+        generators.force_biased, container, d, sizes, d, contraction_rate=contraction_rate,
+        seed=seed, progress=out.progress
     )
     return _generation_record("fb", generation, calippso.write(generation.packing, output))
 
@@ -176,10 +192,12 @@ def generate_fb(n, d, distribution, ratio, std, seed, contraction_rate, output, 
     "--final-rate", type=positive(float), default=1e-4, show_default=True, help="Final growth rate."
 )
 @checkpoint_option
+@container_options
 @output_path()
 @output_options
 def generate_mls(
-    n, d, distribution, ratio, std, seed, input_path, final_rate, checkpoint, output, out
+    n, d, distribution, ratio, std, seed, input_path, final_rate, checkpoint, container, output,
+    out
 ):
     """Closest jammed configuration (modified LS) of a start configuration."""
     import calippso
@@ -187,18 +205,59 @@ def generate_mls(
 
     if input_path is not None:
         with naming(input_path):
-            start = {"start": calippso.read(input_path)}
+            start = {"start": with_container(calippso.read(input_path), container, input_path)}
+        container = None                      # the start carries the boundaries
     else:
         start = {"diameters": make_diameters(n, distribution, ratio=ratio, std=std, seed=seed),
                  "d": d}
     with naming(input_path):
-        generation = generators.closest_jamming(
-            **start, final_rate=final_rate, seed=seed, progress=out.progress,
-            checkpoint=checkpoint
+        generation = call_with_boundaries(
+            generators.closest_jamming, container, d, **start, final_rate=final_rate,
+            seed=seed, progress=out.progress, checkpoint=checkpoint
         )
     with naming(output):
         written = calippso.write(generation.packing, output)
     return _generation_record("mls", generation, written)
+
+
+@generate.command("random")
+@diameter_options
+@click.option(
+    "--phi",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=RANDOM_START_PHI,
+    show_default=True,
+    help="Packing fraction of the random centres, before the shrink.",
+)
+@container_options
+@output_path()
+@output_options
+def generate_random(n, d, distribution, ratio, std, seed, phi, container, output, out):
+    """Random start: Poisson centres inside the container, every diameter then shrunk by one
+    factor until nothing overlaps (a tiny packing fraction; jam it as it is)."""
+    import time
+
+    import calippso
+    import generators
+    from ..neighbors import contact_shrink
+
+    began = time.perf_counter()
+    sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
+    points = call_with_boundaries(generators.poisson, container, d, sizes, d, phi=phi,
+                                  seed=seed)
+    shrink = contact_shrink(points.positions, points.diameters, points.box)
+    packing = points.scaled_to_phi(points.phi * shrink ** d)
+    written = calippso.write(packing, output)
+    seconds = time.perf_counter() - began
+    container_text = ("" if packing.boundaries.is_periodic
+                      else f", {packing.boundaries.describe()}")
+    record = {"command": "generate", "protocol": "random", "n": packing.n, "d": packing.d,
+              "phi": packing.phi, "phi_before_shrink": phi, "wall_time": seconds,
+              "boundaries": str(packing.boundaries), "output": str(written)}
+    text = (f"random: N = {packing.n}, d = {packing.d}{container_text}, phi = {packing.phi:.3g} "
+            f"(Poisson centres at phi = {phi:g}, shrunk to no overlap), {seconds:.1f} s "
+            f"-> {written}")
+    return record, text
 
 
 @generate.command("spherocylinders")

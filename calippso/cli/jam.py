@@ -11,8 +11,8 @@ from typing import TYPE_CHECKING
 import click
 
 from ..settings import INTERIOR_POINT_SOLVERS, NETWORK_FIRST_MODES, PIVOT_MODES
-from .common import (checkpoint_option, naming, output_options, output_path, positive,
-                     solver_option)
+from .common import (checkpoint_option, container_options, naming, output_options,
+                     output_path, positive, solver_option, with_container)
 from .progress import jam_with_progress
 
 if TYPE_CHECKING:
@@ -33,14 +33,16 @@ def _contacts_of(path: Path) -> np.ndarray:
 
 
 def jam_record(result, source, output: Path | None) -> dict:
-    """The JSON record of a jamming run: its input, `calippso.analysis.record.run_record`
-    and the output path."""
+    """The JSON record of a jamming run: its input, `calippso.analysis.record.run_record`,
+    the boundaries and wall contacts, and the output path."""
     from ..analysis.record import run_record
 
     return {
         "command": "jam",
         "input": str(source),
         **run_record(result),
+        "boundaries": str(result.packing.boundaries),
+        "n_wall_contacts": result.n_wall_contacts,
         "output": None if output is None else str(output),
     }
 
@@ -112,12 +114,15 @@ def jam_record(result, source, output: Path | None) -> dict:
     "(a jammed result, or a start that carries its network).",
 )
 @checkpoint_option
+@container_options
 @output_options
 def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
-        precompress_pressure, network_first, pivots, network_path, checkpoint, out):
+        precompress_pressure, network_first, pivots, network_path, checkpoint, container, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
+    --walls/--cylinder set the boundaries of a periodic INPUT (one that has walls already
+    must have those).
     """
     import calippso
 
@@ -129,7 +134,7 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
             network = _contacts_of(network_path)
     compression = None
     with naming(input_path):
-        packing = calippso.read(input_path)
+        packing = with_container(calippso.read(input_path), container, input_path)
         if precompress_pressure is not None:
             compression = protocols.precompress(
                 packing, precompress_pressure,

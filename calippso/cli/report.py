@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from .common import naming, output_options
+from .common import Container, container_options, naming, output_options, with_container
 
 
 @click.command()
@@ -43,11 +43,18 @@ from .common import naming, output_options
     "force, or the contacts whose opening moves one particle (isostatic packings only; "
     "docs/analysis.md).",
 )
+@container_options
 @output_options
-def report(results, output, model, rule, out):
+def report(results, output, model, rule, container, out):
     """Analyse jammed results (.npz/.h5 files, or folders of them such as an ensemble's) and
-    write one pooled report to a folder."""
+    write one pooled report to a folder.
+
+    A packing with walls adds the wall forces (apart from the particle forces), the loads and
+    pressures on the walls and the layering profile; --walls/--cylinder set the boundaries of
+    periodic results (for the layering profile; they carry no wall forces).
+    """
     files, loaded, skipped = read_results(results)
+    loaded = [_with_container(result, container, path) for result, path in zip(loaded, files)]
     page = make_report(loaded, output, model=model, rule=rule)
     warnings = json.loads((page.parent / "summary.json").read_text()).get("warnings", [])
     record = {"command": "report", "results": [str(p) for p in files],
@@ -98,6 +105,14 @@ def read_results(paths: tuple[Path, ...]) -> tuple[list[Path], list, list[Path]]
             raise ValueError(f"{path}: a folder with no result file "
                              f"({', '.join(RESULT_SUFFIXES)}) in it")
     return files, results, skipped
+
+
+def _with_container(result, container: Container | None, path: Path):
+    """`result` with its packing's boundaries set by `container` (`common.with_container`)."""
+    import dataclasses
+
+    packing = with_container(result.packing, container, path)
+    return result if packing is result.packing else dataclasses.replace(result, packing=packing)
 
 
 def make_report(results: list, folder: Path, **options) -> Path:
