@@ -1,8 +1,9 @@
 """Pictures of packings: spheres and disks, and what the spherocylinder pictures
 (`generators.spherocylinders.render`) share with them.
 
-Every picture has a title, a colour key and the outline of the periodic box. matplotlib
-draws disks (d = 2; particles cut by the box edge also show at the opposite edge) and, where
+Every picture has a title, a colour key and the outline of the box, and the walls of a
+container (`calippso.reporting.containers`). matplotlib draws disks (d = 2; particles cut by
+a periodic box edge also show at the opposite edge) and, where
 POV-Ray is not installed, spheres (d = 3) as depth-sorted discs shaded by depth, seen
 obliquely. POV-Ray, when the ``povray`` program is on the PATH, ray-traces d = 3 pictures;
 matplotlib then adds the title and the key around them. In d = 3 the particles whose centres
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..packing import Packing
+from .containers import draw_walls_2d, draw_walls_3d, povray_walls, wall_key
 
 __all__ = ["BACKENDS", "render_spheres", "sphere_colours", "sphere_title", "view_basis",
            "box_edges", "choose_backend", "framed_figure", "save_figure", "draw_box_outline",
@@ -284,9 +286,10 @@ def render_spheres(packing: Packing, path: str | PathLike, *,
     backend = choose_backend(backend, packing.d)
     packing = packing.wrapped()
     colours, key = sphere_colours(packing, rattlers)
+    key += wall_key(packing)
     title = sphere_title(packing, rattlers) if title is None else title
     if backend == "povray":
-        lines = povray_scene(packing.box, elevation, azimuth) + [
+        lines = povray_scene(packing.box, elevation, azimuth) + povray_walls(packing) + [
             f"sphere {{ <{r[0]:.6f}, {r[1]:.6f}, {r[2]:.6f}>, {sigma / 2:.6f} "
             f"pigment {{ rgb <{c[0]:.4f}, {c[1]:.4f}, {c[2]:.4f}> }} finish {{ F }} }}"
             for r, sigma, c in zip(packing.positions, packing.diameters, colours)]
@@ -300,9 +303,10 @@ def render_spheres(packing: Packing, path: str | PathLike, *,
 
 
 def _periodic_images(packing: Packing) -> tuple[np.ndarray, np.ndarray]:
-    """Centres of the disks and of their images that reach into the box, with the index of
-    the disk each one shows."""
-    shifts = np.array([[a, b] for a in (-1, 0, 1) for b in (-1, 0, 1)], dtype=float)
+    """Centres of the disks and of their images across the periodic edges that reach into
+    the box, with the index of the disk each one shows."""
+    steps = [(-1, 0, 1) if periodic else (0,) for periodic in packing.periodic]
+    shifts = np.array([[a, b] for a in steps[0] for b in steps[1]], dtype=float)
     radius = packing.diameters[:, None] / 2
     centres, owners = [], []
     for shift in shifts:
@@ -328,6 +332,7 @@ def _draw_disks(axis, packing: Packing, colours: np.ndarray) -> None:
     axis.add_collection(disks)
     axis.add_patch(outline)
     disks.set_clip_path(outline)
+    draw_walls_2d(axis, packing, zorder=4)
     margin = 0.02 * float(packing.box.max())
     axis.set_xlim(-margin, packing.box[0] + margin)
     axis.set_ylim(-margin, packing.box[1] + margin)
@@ -348,6 +353,7 @@ def _draw_spheres(axis, packing: Packing, colours: np.ndarray, basis: np.ndarray
         facecolors=np.clip(colours[order] * shade[order, None], 0, 1),
         edgecolors=[OUTLINE_COLOUR], linewidths=0.3, zorder=2))
     draw_box_outline(axis, packing.box, basis, behind=1, front=3)
+    draw_walls_3d(axis, packing, basis, behind=1, front=3)
     extent = VIEW_HALF_WIDTH * float(np.linalg.norm(packing.box))
     axis.set_xlim(-extent, extent)
     axis.set_ylim(-extent, extent)
