@@ -326,22 +326,21 @@ class _Jammer:
     def _without_network_stages(self, settings: JamSettings,
                                 hint: np.ndarray | None) -> tuple[JamSettings, None]:
         """Settings for a box with walls: the stages that do not know walls yet (network
-        first, Newton, contact pivots) are switched off, each said in a note; the LP loop,
-        whose rows and forces include the walls, does the whole run."""
+        first, contact pivots) are switched off, each said in a note; the LP loop and the
+        Newton stage, whose rows, equations and forces include the walls, do the run."""
         if settings.network_first == "require":
             raise ValueError("network_first='require' cannot be met with walls: the "
                              "network-first stage does not handle wall contacts yet")
         skipped = [name for name, on in (("network first", settings.network_first != "off"),
-                                         ("Newton", settings.newton),
                                          ("contact pivots", settings.pivots != "off"))
                    if on]
         if skipped:
             self.history.note(f"{', '.join(skipped)} skipped: not wall-aware yet "
-                              f"({self.boundaries.describe()}); LPs only")
+                              f"({self.boundaries.describe()})")
         if hint is not None:
             self.history.note("the network hint was not used: the network-first stage does "
                               "not handle walls yet")
-        return settings.with_changes(network_first="off", newton=False, pivots="off"), None
+        return settings.with_changes(network_first="off", pivots="off"), None
 
     def _walls(self, search: NeighborSearch, step: float, stable: np.ndarray | None,
                forced: np.ndarray) -> WallRows:
@@ -711,7 +710,7 @@ class _Jammer:
         began = time.perf_counter()
         certified, failure = certify_network(self.positions, self.diameters, self.box, network,
                                              guessed=guessed or origin is not None,
-                                             refined=refined)
+                                             refined=refined, boundaries=self.boundaries)
         if certified is None:
             self.failed_networks.add(key)
             self.newton_failure = failure

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .boundaries import Boundaries
 from .contacts import force_balance, isostaticity_gap, polish_forces, positive_self_stress
 from .neighbors import NEAR_CONTACT_SLACK, NeighborSearch, Pairs, shrink_to_margin
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
@@ -112,7 +113,8 @@ def network_balance(search: NeighborSearch, network: ContactNetwork) -> float:
 
 
 def overlaps_outside(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                     contact_keys: np.ndarray) -> tuple[NeighborSearch, Pairs, np.ndarray]:
+                     contact_keys: np.ndarray, periodic: np.ndarray | None = None
+                     ) -> tuple[NeighborSearch, Pairs, np.ndarray]:
     """The neighbour search of a configuration, its pairs near contact, and which of those
     overlap beyond `NEWTON_OVERLAP_TOLERANCE` without being a contact.
 
@@ -123,6 +125,8 @@ def overlaps_outside(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     box : ndarray, shape (d,)
     contact_keys : ndarray, shape (M,), int64
         Sorted keys i N + j of the contacts.
+    periodic : ndarray, shape (d,), bool, optional
+        The periodic axes; None: all of them.
 
     Returns
     -------
@@ -131,7 +135,7 @@ def overlaps_outside(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         `NeighborSearch.pairs_near_contact`.
     overlapping : ndarray, shape (len(close),), bool
     """
-    search = NeighborSearch(positions, diameters, box)
+    search = NeighborSearch(positions, diameters, box, periodic)
     close = search.pairs_near_contact()
     is_contact = np.isin(close.i * positions.shape[0] + close.j, contact_keys)
     return search, close, ~is_contact & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
@@ -169,15 +173,17 @@ class Certified:
 
 def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                     network: ContactNetwork, *, guessed: bool = False,
-                    refined: Refinement | None = None) -> tuple[Certified | None, str]:
+                    refined: Refinement | None = None,
+                    boundaries: Boundaries | None = None) -> tuple[Certified | None, str]:
     """Solve the contact equations of an isostatic network and certify the solution.
 
-    Certified means: every force positive and no other pair overlapping beyond
-    `NEWTON_OVERLAP_TOLERANCE` (see `calippso.newton`). Rattlers that the moved cages now
-    overlap are first moved out of the way (`calippso.rattlers.separate_rattlers`). A
-    `guessed` network (not an LP's) must also be the whole contact network: another touching
-    pair of stable particles (h < `GEOMETRIC_CONTACT_GAP`) means a degenerate (hyperstatic)
-    packing, left to the LPs.
+    Certified means: every force positive (wall contacts included) and no other pair
+    overlapping, nor any other particle crossing a wall, beyond `NEWTON_OVERLAP_TOLERANCE`
+    (see `calippso.newton`). In a periodic box, rattlers that the moved cages now overlap are
+    first moved out of the way (`calippso.rattlers.separate_rattlers`). A `guessed` network
+    (not an LP's) must also be the whole contact network: another touching pair of stable
+    particles, or a stable particle touching a wall outside the network (h <
+    `GEOMETRIC_CONTACT_GAP`), means a degenerate (hyperstatic) packing, left to the LPs.
 
     Parameters
     ----------
@@ -186,11 +192,13 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
     diameters : ndarray, shape (N,)
     box : ndarray, shape (d,)
     network : ContactNetwork
-        Its forces are not used.
+        Its forces are not used; its wall contacts are part of the network.
     guessed : bool
         The network was guessed from the input, not read from an LP's duals.
     refined : Refinement, optional
         Newton's solution from `positions`, when already computed (`calippso.network_first`).
+    boundaries : Boundaries, optional
+        The box's boundaries (`calippso.boundaries`); None: periodic along every axis.
 
     Returns
     -------
@@ -198,41 +206,56 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
         The certified point and "", or None and why it failed.
     """
     n = positions.shape[0]
+    periodic = None if boundaries is None or boundaries.is_periodic else boundaries.periodic
+    wall_axes = () if boundaries is None else boundaries.wall_axes
     if refined is None:
         refined = refine_isostatic(positions, diameters, box, network.i, network.j,
-                                   ~network.rattlers)
+                                   ~network.rattlers, wall_particle=network.wall_particle,
+                                   wall=network.wall, periodic=periodic)
     if refined is None:
         return None, NEWTON_FAILED
     order = np.sort(network.i * n + network.j)
     moved = refined.positions
-    search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order)
-    if refined.positive and overlapping.any() and np.all(
+    search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order,
+                                                  periodic)
+    if periodic is None and refined.positive and overlapping.any() and np.all(
             network.rattlers[close.i[overlapping]] | network.rattlers[close.j[overlapping]]):
         # only rattlers overlap: the cage moved under a rattler that touched it
         separated = separate_rattlers(moved, refined.diameters, box, network.rattlers)
         if separated is not None:
             moved = separated
             search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order)
+    near_walls = walls_near_contact(search, wall_axes)
+    n_walls = 2 * positions.shape[1]
+    outside_walls = ~np.isin(near_walls.keys(n_walls),
+                             network.wall_particle * n_walls + network.wall)
+    crossing = int(np.count_nonzero(outside_walls
+                                    & (near_walls.gaps < -NEWTON_OVERLAP_TOLERANCE)))
     touching = 0
     if guessed:
         stable = ~network.rattlers
         outside = ~np.isin(close.i * n + close.j, order)
         touching = int(np.count_nonzero(outside & (close.gaps < GEOMETRIC_CONTACT_GAP)
                                         & stable[close.i] & stable[close.j]))
+        touching += int(np.count_nonzero(outside_walls & (near_walls.gaps < GEOMETRIC_CONTACT_GAP)
+                                         & stable[near_walls.particle]))
     if not refined.positive:
         return None, "a non-positive force"
     if overlapping.any():
         return None, f"{int(overlapping.sum())} other pair(s) would overlap"
+    if crossing:
+        return None, f"{crossing} other particle(s) would cross a wall"
     if touching:
         return None, f"{touching} other pair(s) touch (a hyperstatic packing)"
     current = search.pairs_of(network.i, network.j)
-    weights = current.sigma**2 / current.distances
-    certified = ContactNetwork(network.i, network.j, refined.forces, network.rattlers,
-                               float(refined.forces @ weights), network.solver, from_lp=False)
+    walls = wall_rows_of(search.positions, search.diameters, search.box, network.wall_particle,
+                         network.wall)
+    normalization = float(refined.forces @ (current.sigma**2 / current.distances)
+                          + refined.wall_forces @ (walls.sigma**2 / walls.distances))
+    certified = replace(network, forces=refined.forces, wall_forces=refined.wall_forces,
+                        normalization=normalization, from_lp=False)
     return Certified(moved, refined.diameters, search, certified,
                      network_balance(search, certified), close.smallest_gap(), refined), ""
-
-
 def touching_network(search: NeighborSearch, network: ContactNetwork, balance: float, d: int,
                      balance_tolerance: float, wall_axes: tuple[int, ...] = (),
                      zero_modes: int | None = None) -> tuple[ContactNetwork, float, str | None]:

@@ -6,7 +6,9 @@ unknowns d (N_s − 1) + 1), the jamming point solves the square nonlinear syste
     |r_c|² / σ_c² = Γ      for every contact c = (i, j), with r_c = x_i − x_j (fixed image),
 
 in the positions x of the stable particles (one of them pinned) and the common inflation Γ
-of the squared diameters. Newton's method solves it to round-off with a few sparse LU
+of the squared diameters. A contact w of particle i with a flat wall (`calippso.walls`) adds
+the equation δ_w²/σ_w² = Γ, with δ_w the centre-to-wall distance and σ_w = σ_i/2; in a box
+with walls the pinned particle is held along the periodic axes only (a wall holds the rest). Newton's method solves it to round-off with a few sparse LU
 solves, where the LP loop would need many more LPs: the neglected |s|² of its linearisation
 keeps the LP displacements from vanishing for a long time.
 
@@ -25,7 +27,7 @@ with negative forces or new overlaps, which the certificate rejects.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -89,6 +91,9 @@ class Refinement:
     factorization : (Factors, scipy.sparse.csc_matrix) or None
         The last sparse LU made and the Jacobian it factorises (near the solution), for
         solves that follow (`calippso.pivots`); None when every step used given factors.
+    wall_forces : ndarray, shape (K,)
+        Forces of the wall contacts, in the order given, in the units of `forces`; empty
+        without walls.
     """
 
     positions: np.ndarray
@@ -100,43 +105,64 @@ class Refinement:
     max_displacement: float
     residual: float
     factorization: tuple[Factors, sp.csc_matrix] | None = None
+    wall_forces: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def positive(self) -> bool:
-        """Every contact force is positive, above `MIN_FORCE_RATIO` × the largest: the network
-        is the jammed one. A force at round-off level is a zero force (a contact that could
-        open at no cost), not a certificate."""
-        if self.forces.size == 0:
+        """Every contact force (walls included) is positive, above `MIN_FORCE_RATIO` × the
+        largest: the network is the jammed one. A force at round-off level is a zero force (a
+        contact that could open at no cost), not a certificate."""
+        every = np.concatenate([self.forces, self.wall_forces])
+        if every.size == 0:
             return True
-        return bool(self.forces.min() > MIN_FORCE_RATIO * self.forces.max())
+        return bool(every.min() > MIN_FORCE_RATIO * every.max())
 
 
-def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_col: np.ndarray,
-              j_col: np.ndarray, n_unknowns: int) -> sp.csc_matrix:
+def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_cols: np.ndarray,
+              j_cols: np.ndarray, n_unknowns: int) -> sp.csc_matrix:
     """Jacobian of |r_c|²/σ_c² − Γ: 2 r_c/σ_c² on x_i, −2 r_c/σ_c² on x_j, −1 on Γ.
 
-    `i_col`, `j_col` hold the first column of each particle's block, −1 if it is pinned.
+    `i_cols`, `j_cols` (shape (M, d)) hold the column of every coordinate of each contact's
+    two particles (`_free_columns`), −1 where it is held fixed (the pinned particle, or the
+    wall of a wall contact).
     """
-    m, d = vectors.shape
-    coordinate = np.arange(d)
+    m = vectors.shape[0]
     gradient = 2.0 * vectors * inverse_sigma2[:, None]
     rows, cols, values = [np.arange(m)], [np.full(m, n_unknowns - 1)], [np.full(m, -1.0)]
-    for block, sign in ((i_col, 1.0), (j_col, -1.0)):
-        free = block >= 0
-        rows.append(np.repeat(np.flatnonzero(free), d))
-        cols.append((block[free, None] + coordinate).ravel())
-        values.append(sign * gradient[free].ravel())
+    for columns, sign in ((i_cols, 1.0), (j_cols, -1.0)):
+        free = columns >= 0
+        rows.append(np.nonzero(free)[0])
+        cols.append(columns[free])
+        values.append(sign * gradient[free])
     return sp.csc_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(m, n_unknowns))
 
 
-def _first_columns(stable: np.ndarray, d: int) -> np.ndarray:
-    """The first Jacobian column of every particle's block, shape (N,); −1 for rattlers and
-    for the pinned particle (the first stable one)."""
+def _free_columns(stable: np.ndarray, d: int, periodic: np.ndarray | None = None) -> np.ndarray:
+    """The Jacobian column of every coordinate, shape (N, d), numbered in row-major order; −1
+    for rattlers and for the pinned coordinates: those of the first stable particle along the
+    periodic axes (all axes when `periodic` is None)."""
+    free = np.repeat(stable[:, None], d, axis=1)
     members = np.flatnonzero(stable)
-    block = np.full(stable.shape[0], -1, dtype=np.int64)
-    block[members[1:]] = d * np.arange(members.size - 1)
-    return block
+    if members.size:
+        free[members[0]] = False if periodic is None else ~periodic
+    columns = np.full(free.shape, -1, dtype=np.int64)
+    columns[free] = np.arange(int(np.count_nonzero(free)))
+    return columns
+
+
+def _wall_vectors(positions: np.ndarray, box: np.ndarray, wall_particle: np.ndarray,
+                  wall: np.ndarray) -> np.ndarray:
+    """The vector of every wall contact in the form of a pair's, shape (K, d): δ_w e_w, with
+    δ_w the centre-to-wall distance and e_w the wall's inward normal (`calippso.walls`), so
+    that |r|² = δ_w² and its gradient on the particle is 2 r."""
+    axis = wall // 2
+    x = positions[wall_particle, axis]
+    inward = 1.0 - 2.0 * (wall % 2)
+    vectors = np.zeros((wall_particle.shape[0], positions.shape[1]))
+    vectors[np.arange(wall_particle.shape[0]), axis] = inward * np.where(wall % 2 == 0, x,
+                                                                         box[axis] - x)
+    return vectors
 
 
 def network_jacobian(vectors: np.ndarray, sigma: np.ndarray, i: np.ndarray, j: np.ndarray,
@@ -156,8 +182,8 @@ def network_jacobian(vectors: np.ndarray, sigma: np.ndarray, i: np.ndarray, j: n
     """
     d = vectors.shape[1]
     n_unknowns = d * (int(np.count_nonzero(stable)) - 1) + 1
-    block = _first_columns(stable, d)
-    return _jacobian(vectors, 1.0 / sigma**2, block[i], block[j], n_unknowns).tocsr()
+    columns = _free_columns(stable, d)
+    return _jacobian(vectors, 1.0 / sigma**2, columns[i], columns[j], n_unknowns).tocsr()
 
 
 def contact_jacobian(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -174,7 +200,9 @@ def contact_jacobian(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
 
 def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                      i: np.ndarray, j: np.ndarray, stable: np.ndarray,
-                     factors: Factors | None = None) -> Refinement | None:
+                     factors: Factors | None = None, *,
+                     wall_particle: np.ndarray | None = None, wall: np.ndarray | None = None,
+                     periodic: np.ndarray | None = None) -> Refinement | None:
     """Solve the contact equations of an isostatic network and certify the forces.
 
     Chord steps: the Jacobian is factorised once, at the start, and its factors serve every
@@ -190,41 +218,57 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     diameters : ndarray, shape (N,)
     box : ndarray, shape (d,)
     i, j : ndarray, shape (M,), int
-        The contacts, between stable particles, with M = d (N_s − 1) + 1.
+        The contacts, between stable particles.
     stable : ndarray, shape (N,), bool
         Non-rattlers; every stable particle has a contact.
     factors : Factors, optional
         Factors of a matrix close to the Jacobian at `positions` (the same unknowns), used
         for the first chord steps instead of a new factorisation.
+    wall_particle, wall : ndarray, shape (K,), int, optional
+        Contacts of stable particles with flat walls (`calippso.walls` numbering: wall 2μ at
+        0, 2μ + 1 at L_μ); none by default.
+    periodic : ndarray, shape (d,), bool, optional
+        The periodic axes (`calippso.boundaries.Boundaries.periodic`); None: all of them.
+        The first stable particle is pinned along these only. The network is square when
+        M + K = (free coordinates) + 1.
 
     Returns
     -------
     Refinement or None
         None when the network is not square, the Jacobian is singular or Newton does not
         converge. The caller certifies the rest: `Refinement.positive`, and no overlap of
-        pairs that are not contacts.
+        pairs (or crossing of walls) that are not contacts.
     """
     n, d = positions.shape
-    members = np.flatnonzero(stable)
-    n_unknowns = d * (members.size - 1) + 1
-    if members.size < 2 or i.shape[0] != n_unknowns:
+    wall_particle = np.zeros(0, np.int64) if wall_particle is None else wall_particle
+    wall = np.zeros(0, np.int64) if wall is None else wall
+    columns = _free_columns(stable, d, periodic)
+    free = columns >= 0
+    n_unknowns = int(np.count_nonzero(free)) + 1
+    m = i.shape[0]
+    if np.count_nonzero(stable) < 2 or m + wall_particle.shape[0] != n_unknowns:
         return None
-    block = _first_columns(stable, d)
-    i_col, j_col = block[i], block[j]
-    sigma = 0.5 * (diameters[i] + diameters[j])
+    i_cols = np.concatenate([columns[i], columns[wall_particle]])
+    j_cols = np.concatenate([columns[j], np.full((wall.shape[0], d), -1, dtype=np.int64)])
+    sigma = np.concatenate([0.5 * (diameters[i] + diameters[j]), 0.5 * diameters[wall_particle]])
     inverse_sigma2 = 1.0 / sigma**2
-    start_vectors = minimum_image(positions[i] - positions[j], box)
+    start_vectors = minimum_image(positions[i] - positions[j], box, periodic)
     image_shift = start_vectors - (positions[i] - positions[j])
     moved = positions.copy()
-    gamma = float(np.mean(np.einsum("md,md->m", start_vectors, start_vectors) * inverse_sigma2))
-    movable = members[1:]
+
+    def contact_vectors() -> np.ndarray:
+        return np.concatenate([moved[i] - moved[j] + image_shift,
+                               _wall_vectors(moved, box, wall_particle, wall)])
+
+    vectors = contact_vectors()
+    gamma = float(np.mean(np.einsum("md,md->m", vectors, vectors) * inverse_sigma2))
 
     def residual_and_vectors() -> tuple[np.ndarray, np.ndarray]:
-        vectors = moved[i] - moved[j] + image_shift
+        vectors = contact_vectors()
         return np.einsum("md,md->m", vectors, vectors) * inverse_sigma2 - gamma, vectors
 
     def jacobian(vectors: np.ndarray) -> sp.csc_matrix:
-        return _jacobian(vectors, inverse_sigma2, i_col, j_col, n_unknowns)
+        return _jacobian(vectors, inverse_sigma2, i_cols, j_cols, n_unknowns)
 
     residual, vectors = residual_and_vectors()
     factorizations, previous, made = 0, np.inf, None
@@ -247,7 +291,7 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
                 return None
             factorizations, made, previous = factorizations + 1, (factors, matrix), np.inf
             continue
-        moved[movable] += correction[:-1].reshape(-1, d)
+        moved[free] += correction[:-1]
         gamma += float(correction[-1])
         residual, vectors = residual_and_vectors()
         if largest < STEP_TOLERANCE:
@@ -271,16 +315,15 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     stress = _self_stress(factors, jacobian(vectors))  # J_xᵀ y = 0 (balance), Σ y = 1
     if stress is None:
         return None
-    new_diameters = diameters * np.sqrt(gamma)
     new_sigma = sigma * np.sqrt(gamma)
     distances = np.sqrt(np.einsum("md,md->m", vectors, vectors))
     forces = distances * stress / new_sigma**2  # f = μ/2 with μ = 2|r| y / σ'²
     return Refinement(
-        positions=wrap(moved, box), diameters=new_diameters, forces=forces,
-        iterations=iteration, factorizations=factorizations,
+        positions=wrap(moved, box, periodic), diameters=diameters * np.sqrt(gamma),
+        forces=forces[:m], iterations=iteration, factorizations=factorizations,
         sqrt_gamma_minus_1=float(np.sqrt(gamma) - 1.0),
-        max_displacement=float(np.abs(moved[movable] - positions[movable]).max(initial=0.0)),
-        residual=worst, factorization=made)
+        max_displacement=float(np.abs(moved[free] - positions[free]).max(initial=0.0)),
+        residual=worst, factorization=made, wall_forces=forces[m:])
 
 
 def _self_stress(factors: Factors, jacobian: sp.csc_matrix) -> np.ndarray | None:

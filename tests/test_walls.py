@@ -223,8 +223,27 @@ def test_jam_between_flat_walls(d, n, axes, polydisperse):
     result = calippso.jam(start)
     assert_jammed_between_walls(result)
     assert result.packing.boundaries == start.boundaries
-    assert any("not wall-aware yet" in note for note in result.notes)
-    assert result.history["stage"].tolist().count("newton") == 0
+    assert any("network first, contact pivots skipped" in note for note in result.notes)
+    # the Newton stage solves the pair and wall contact equations and certifies the point
+    assert result.stop_reason is calippso.StopReason.CERTIFIED_NEWTON
+    assert result.history["stage"].tolist().count("newton") == 1
+
+
+@pytest.mark.parametrize("d, n, axes", [(2, 128, [0]), (3, 64, [0, 1, 2])])
+def test_newton_between_walls_ends_where_the_lps_end(d, n, axes):
+    """The Newton stage with wall contacts reaches the jamming point that the LP loop alone
+    converges to: the same φ_J (to 1e-9), particle contacts and wall contacts."""
+    start = walled_start(n, d, axes, polydisperse=True)
+    newton = calippso.jam(start)
+    lps = calippso.jam(start, newton=False)
+    assert newton.stop_reason is calippso.StopReason.CERTIFIED_NEWTON
+    assert lps.stop_reason is calippso.StopReason.CONVERGED
+    assert_jammed_between_walls(lps)
+    assert newton.iterations < lps.iterations
+    assert newton.packing.phi == pytest.approx(lps.packing.phi, abs=1e-9)
+    np.testing.assert_array_equal(newton.contacts, lps.contacts)
+    np.testing.assert_array_equal(newton.wall_contacts, lps.wall_contacts)
+    np.testing.assert_allclose(newton.wall_forces, lps.wall_forces, rtol=1e-6)
 
 
 def test_walls_leave_a_periodic_run_unchanged():
