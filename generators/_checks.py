@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["check_diameters", "check_dimension", "check_positive", "check_phi", "phi_estimate"]
+__all__ = ["check_diameters", "check_dimension", "check_positive", "check_phi", "phi_estimate",
+           "check_boundaries", "wall_gaps", "remove_roundoff_overlap"]
 
 
 def check_diameters(diameters) -> np.ndarray:
@@ -60,13 +61,75 @@ def phi_estimate(d: int) -> float:
     return (2.56 * d - 2.72) / 2.0**d
 
 
+def check_boundaries(boundaries, d: int, generator: str, kinds: tuple[str, ...]):
+    """The boundaries of a run: all periodic when None, else `boundaries` if every one of
+    its axes is of one of `kinds`; ValueError (one line naming `generator`) otherwise.
+
+    Parameters
+    ----------
+    boundaries : calippso.Boundaries or None
+    d : int
+        Dimension of the run.
+    generator : str
+        Name of the generator, for the message.
+    kinds : tuple of str
+        The boundary kinds the generator handles (`calippso.boundaries.KINDS`).
+    """
+    from calippso.boundaries import Boundaries
+
+    if boundaries is None:
+        return Boundaries.all_periodic(d)
+    if not isinstance(boundaries, Boundaries):
+        raise ValueError(f"boundaries must be a calippso.Boundaries, got "
+                         f"{type(boundaries).__name__}")
+    if boundaries.d != d:
+        raise ValueError(f"boundaries have {boundaries.d} axes, expected d = {d}")
+    unsupported = sorted(set(boundaries.kinds) - set(kinds))
+    if unsupported:
+        raise ValueError(f"{generator} does not handle {', '.join(unsupported)} boundaries "
+                         f"({boundaries.describe()}); it takes {', '.join(kinds)}")
+    return boundaries
+
+
+def wall_gaps(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+              periodic: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Relative gap of every particle to each flat wall: h = δ/(σ_i/2) − 1, δ the centre's
+    distance to the wall (the wall as a partner at contact distance σ_i/2, as in
+    `calippso.walls`; a shrink of all diameters by c turns h into (1 + h)/c − 1, as for a
+    pair).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres (length units).
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    periodic : ndarray, shape (d,), bool
+        Periodic axes; the others have walls at 0 (wall 2μ) and L_μ (wall 2μ + 1).
+
+    Returns
+    -------
+    particle, wall : ndarray of int64, shape (2 N W,)
+        Every particle against each of the 2 W walls (W walled axes), particle-major.
+    gaps : ndarray, shape (2 N W,)
+    """
+    axes = np.flatnonzero(~np.asarray(periodic, dtype=bool))
+    n = positions.shape[0]
+    distances = np.stack([positions[:, axes], box[axes] - positions[:, axes]], axis=2)
+    gaps = (2.0 * distances / diameters[:, None, None] - 1.0).reshape(n, -1)
+    walls = (2 * axes[:, None] + np.arange(2)[None, :]).reshape(-1)
+    particle = np.repeat(np.arange(n, dtype=np.int64), walls.size)
+    return particle, np.tile(walls.astype(np.int64), n), gaps.reshape(-1)
+
+
 #: Relative gap `remove_roundoff_overlap` leaves on the closest pair (a few units of round-off).
 ROUNDOFF_MARGIN = 1e-15
 
 
-def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray,
-                            box: np.ndarray) -> tuple[np.ndarray, float]:
-    """Scale all diameters down by the (tiny) relative overlap left by round-off, if any.
+def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                            periodic: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """Scale all diameters down by the (tiny) relative overlap left by round-off, if any,
+    between two particles or a particle and a flat wall.
 
     The check is an independent periodic KD-tree search (`calippso.neighbors.min_gap`). The
     factor is 1 − (−h + `ROUNDOFF_MARGIN`), not `calippso.neighbors.shrink_to_margin`'s
@@ -80,7 +143,10 @@ def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray,
     diameters : ndarray, shape (N,)
         Diameters (length units).
     box : ndarray, shape (d,)
-        Periodic box sides (length units).
+        Box sides (length units).
+    periodic : ndarray, shape (d,), bool, optional
+        Periodic axes; flat walls at 0 and L_μ along the others (`wall_gaps`). None: every
+        axis periodic.
 
     Returns
     -------
@@ -91,7 +157,9 @@ def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray,
     """
     from calippso.neighbors import min_gap
 
-    gap, _ = min_gap(positions, diameters, box)
+    gap, _ = min_gap(positions, diameters, box, periodic)
+    if periodic is not None and not np.all(periodic):
+        gap = min(gap, float(wall_gaps(positions, diameters, box, periodic)[2].min()))
     if gap >= 0:
         return diameters, 0.0
     correction = -gap + ROUNDOFF_MARGIN

@@ -6,6 +6,12 @@ lengths in mean diameters of the nominal sizes s_i, current diameters σ_i = a s
 diameter scale). Each Verlet pair is evaluated once; the force loop runs in parallel over
 blocks of particles, each thread writing only its own rows (`harmonic_forces`).
 
+Along an axis closed by flat walls at 0 and L_μ (`periodic[μ]` False) pairs meet without the
+minimum image, and a particle at distance δ < σ_i/2 from a wall overlaps it by σ_i/2 − δ:
+it has the energy of a pair with that overlap, V = ε/2 ((σ_i/2 − δ)/σ_i)², and the force
+(σ_i/2 − δ)/σ_i² along the wall's inward normal. Its virial term is that force × δ, so that
+the pressure stays −∂E/∂ ln V under an affine compression of the box, walls included.
+
 FIRE 2.0 (Guénolé et al., Comput. Mater. Sci. 175, 109584 (2020)): semi-implicit Euler
 steps, velocity mixing v ← (1 − α) v + α |v| F̂, a backstep x ← x − Δt v / 2 with v ← 0 when
 the power F·v turns non-positive, and no Δt decrease during the first `N_DELAY` steps.
@@ -16,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .periodic import image_component
+from .periodic import image_component, inverse_sides
 
 __all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "contact_pairs",
            "box_volume", "CONVERGED", "REBUILD", "OUT_OF_STEPS"]
@@ -149,17 +155,16 @@ def pair_lists(start: np.ndarray, neighbours: np.ndarray):
 
 
 @njit(cache=True)
-def _pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first: np.ndarray,
-           second: np.ndarray, pair_force: np.ndarray, f: np.ndarray, lo: int, hi: int,
-           sums: np.ndarray) -> None:
+def _pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, inv: np.ndarray,
+           first: np.ndarray, second: np.ndarray, pair_force: np.ndarray, f: np.ndarray,
+           lo: int, hi: int, sums: np.ndarray) -> None:
     """Pass 1 of `harmonic_forces` for particles lo ≤ i < hi, any d.
 
     Each pair k of row i: pair_force[k] = its force on i; f[i] = the sum over the row;
     sums[4:8] = Σ f_ij, Σ f_ij r_ij, the number of overlapping pairs of these rows and their
-    energy Σ (1 − r_ij/σ_ij)² / 2.
+    energy Σ (1 − r_ij/σ_ij)² / 2. `inv`: `periodic.inverse_sides` of the box.
     """
     d = x.shape[1]
-    inv = 1.0 / box
     r_ij = np.empty(d)
     f_i = np.empty(d)
     force_sum = virial = overlaps = energy = 0.0
@@ -191,12 +196,12 @@ def _pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first: n
 
 
 @njit(cache=True)
-def _pairs_3d(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first: np.ndarray,
-              second: np.ndarray, pair_force: np.ndarray, f: np.ndarray, lo: int, hi: int,
-              sums: np.ndarray) -> None:
+def _pairs_3d(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, inv: np.ndarray,
+              first: np.ndarray, second: np.ndarray, pair_force: np.ndarray, f: np.ndarray,
+              lo: int, hi: int, sums: np.ndarray) -> None:
     """`_pairs` written out for d = 3, so that the pair vectors stay in registers."""
     box0, box1, box2 = box[0], box[1], box[2]
-    inv0, inv1, inv2 = 1.0 / box0, 1.0 / box1, 1.0 / box2
+    inv0, inv1, inv2 = inv[0], inv[1], inv[2]
     force_sum = virial = overlaps = energy = 0.0
     for i in range(lo, hi):
         x0, x1, x2 = x[i, 0], x[i, 1], x[i, 2]
@@ -222,6 +227,37 @@ def _pairs_3d(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, first
             energy += (magnitude * sigma) ** 2
         f[i, 0], f[i, 1], f[i, 2] = f0, f1, f2
     sums[4], sums[5], sums[6], sums[7] = force_sum, virial, overlaps, 0.5 * energy
+
+
+@njit(cache=True)
+def _walls(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
+           periodic: np.ndarray, f: np.ndarray, lo: int, hi: int, sums: np.ndarray) -> None:
+    """Wall terms of pass 1 for particles lo ≤ i < hi, after `_pairs`: each particle closer
+    than its radius to a wall (along an axis that is not periodic) gets the wall's force in
+    f[i], and sums[4:8] gain the force, its virial (force × distance to the wall), the
+    overlap count and the energy, as a pair would."""
+    d = x.shape[1]
+    force_sum = virial = overlaps = energy = 0.0
+    for i in range(lo, hi):
+        sigma = scale * s[i]
+        radius = 0.5 * sigma
+        for mu in range(d):
+            if periodic[mu]:
+                continue
+            for side in range(2):          # the wall at 0 (normal +e_μ), then at L_μ
+                distance = x[i, mu] if side == 0 else box[mu] - x[i, mu]
+                normal = 1.0 - 2.0 * side
+                if distance < radius:
+                    magnitude = (radius - distance) / (sigma * sigma)
+                    f[i, mu] += normal * magnitude
+                    force_sum += magnitude
+                    virial += magnitude * distance
+                    overlaps += 1.0
+                    energy += (magnitude * sigma) ** 2
+    sums[4] += force_sum
+    sums[5] += virial
+    sums[6] += overlaps
+    sums[7] += 0.5 * energy
 
 
 @njit(cache=True)
@@ -275,14 +311,15 @@ def _gather_3d(v: np.ndarray, incoming_start: np.ndarray, incoming: np.ndarray,
 def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
                     first: np.ndarray, second: np.ndarray, incoming_start: np.ndarray,
                     incoming: np.ndarray, pair_force: np.ndarray, f: np.ndarray,
-                    partial: np.ndarray):
+                    partial: np.ndarray, periodic: np.ndarray):
     """Harmonic forces into `f` (in place) and the sums FIRE and the pressure need.
 
     Two parallel passes over blocks of particles: the first computes each pair once (as the
     row of its lower particle, which takes the force) and stores it; the second subtracts the
     stored forces of the pairs where a particle is the higher one. Every thread writes only
     its own rows, and each pair costs one evaluation. d = 3 has its own loops (`_pairs_3d`,
-    `_gather_3d`); other dimensions share `_pairs` and `_gather`.
+    `_gather_3d`); other dimensions share `_pairs` and `_gather`. With walls, the first pass
+    adds the wall forces (`_walls`); a periodic box skips that loop.
 
     Parameters
     ----------
@@ -301,6 +338,8 @@ def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, b
         Output: force on each particle, Σ_j (1 − r_ij/σ_ij)/σ_ij r̂_ij (ε = 1).
     partial : ndarray, shape (blocks, N_SUMS)
         Work array (`work_array`).
+    periodic : ndarray, shape (d,), bool
+        Periodic axes; along the others the box is closed by flat walls at 0 and L_μ.
 
     Returns
     -------
@@ -309,20 +348,25 @@ def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, b
     largest2 : float
         max_i |F_i|².
     force_sum, virial : float
-        Σ over overlapping pairs of f_ij and of f_ij r_ij.
+        Σ over overlapping pairs (and particle–wall overlaps) of f_ij and of f_ij r_ij (for
+        a wall: the force × the centre's distance to the wall).
     overlaps : int
-        Number of overlapping pairs.
+        Number of overlapping pairs and particle–wall overlaps.
     energy : float
-        Harmonic energy E = Σ (1 − r_ij/σ_ij)² / 2 (ε = 1).
+        Harmonic energy E = Σ (1 − r_ij/σ_ij)² / 2 (ε = 1), wall terms included.
     """
     n, d = x.shape
     blocks = partial.shape[0]
+    inv = inverse_sides(box, periodic)
+    walled = not periodic.all()
     for b in prange(blocks):
         lo, hi = b * BLOCK, min(n, (b + 1) * BLOCK)
         if d == 3:
-            _pairs_3d(x, s, scale, box, first, second, pair_force, f, lo, hi, partial[b])
+            _pairs_3d(x, s, scale, box, inv, first, second, pair_force, f, lo, hi, partial[b])
         else:
-            _pairs(x, s, scale, box, first, second, pair_force, f, lo, hi, partial[b])
+            _pairs(x, s, scale, box, inv, first, second, pair_force, f, lo, hi, partial[b])
+        if walled:
+            _walls(x, s, scale, box, periodic, f, lo, hi, partial[b])
     for b in prange(blocks):
         lo, hi = b * BLOCK, min(n, (b + 1) * BLOCK)
         if d == 3:
@@ -381,7 +425,7 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
              first: np.ndarray, second: np.ndarray, incoming_start: np.ndarray,
              incoming: np.ndarray, x_built: np.ndarray, skin: float, scale_built: float,
              state: np.ndarray, dt_max: float, dt_min: float, tolerance: float,
-             force_floor: float, target: float, max_steps: int):
+             force_floor: float, target: float, max_steps: int, periodic: np.ndarray):
     """FIRE 2.0 minimisation of the enthalpy H = E + p* Ṽ at pressure p* = `target`, until
     converged, a list rebuild or the step limit.
 
@@ -418,6 +462,8 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
         p*, in units of ε / (mean diameter)^d.
     max_steps : int
         Steps allowed in this call.
+    periodic : ndarray, shape (d,), bool
+        Periodic axes; flat walls at 0 and L_μ along the others (`harmonic_forces`).
 
     Returns
     -------
@@ -441,7 +487,8 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
     log_scale, v_scale = state[4], state[5]
     scale = np.exp(log_scale)
     power, force2, speed2, largest2, force_sum, virial, overlaps, _ = harmonic_forces(
-        x, v, s, scale, box, first, second, incoming_start, incoming, pair_force, f, partial)
+        x, v, s, scale, box, first, second, incoming_start, incoming, pair_force, f, partial,
+        periodic)
     steps = 0
     drift2 = 0.0
     code = OUT_OF_STEPS
@@ -485,7 +532,7 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
             break
         power, force2, speed2, largest2, force_sum, virial, overlaps, _ = harmonic_forces(
             x, v, s, scale, box, first, second, incoming_start, incoming, pair_force, f,
-            partial)
+            partial, periodic)
     state[0], state[1], state[2], state[3] = dt, alpha, positive, age
     state[4], state[5] = log_scale, v_scale
     return code, steps, pressure, np.sqrt(drift2)
@@ -493,8 +540,10 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
 
 @njit(cache=True)
 def contact_pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
-                  first: np.ndarray, second: np.ndarray, largest_gap: float):
-    """Every listed pair (i < j in slot order) with relative gap h = |r|/σ − 1 < `largest_gap`.
+                  first: np.ndarray, second: np.ndarray, largest_gap: float,
+                  periodic: np.ndarray):
+    """Every listed pair (i < j in slot order) with relative gap h = |r|/σ − 1 < `largest_gap`
+    (the minimum image along the `periodic` axes only).
 
     Returns
     -------
@@ -502,7 +551,7 @@ def contact_pairs(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
     gaps : ndarray, shape (M,)
     """
     n, d = x.shape
-    inv = 1.0 / box
+    inv = inverse_sides(box, periodic)
     lower = np.empty(second.shape[0], dtype=np.int64)
     upper = np.empty(second.shape[0], dtype=np.int64)
     gaps = np.empty(second.shape[0])

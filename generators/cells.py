@@ -3,10 +3,12 @@
 Why it exists beside `calippso.neighbors`: the event-driven, force-biased and soft-sphere
 loops rebuild their lists from inside compiled Numba code, which cannot call scipy's tree.
 
-A cubic or rectangular periodic box is cut into n_μ ≥ 1 cells per direction, each at least as
+A cubic or rectangular box is cut into n_μ ≥ 1 cells per direction, each at least as
 wide as the search radius, so that every pair within the radius lies in the same or in
 adjacent cells. The adjacent-cell offsets are generated for the dimension at hand (3^d of them,
-fewer in a direction with only one or two cells, so that no cell is visited twice).
+fewer in a direction with only one or two cells, so that no cell is visited twice). Along an
+axis closed by walls (not periodic) the cells do not wrap: the neighbours of an edge cell
+lie on one side only, and pairs meet without the minimum image.
 """
 
 from __future__ import annotations
@@ -14,30 +16,34 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .periodic import image_component
+from .periodic import image_component, inverse_sides
 
 __all__ = ["cell_offsets", "verlet_lists"]
 
 
 @njit(cache=True)
-def cell_offsets(n_cells: np.ndarray) -> np.ndarray:
+def cell_offsets(n_cells: np.ndarray, periodic: np.ndarray) -> np.ndarray:
     """Offsets of the neighbouring cells, each visited once.
 
     Parameters
     ----------
     n_cells : ndarray of int64, shape (d,)
         Cells per direction.
+    periodic : ndarray, shape (d,), bool
+        Periodic axes; along the others the offsets are {−1, 0, 1} whenever there are two
+        cells or more (the caller skips the cells beyond the edges).
 
     Returns
     -------
     ndarray of int64, shape (K, d)
-        Offsets in {−1, 0, 1} (3 or more cells), {0, 1} (2 cells) or {0} (1 cell) per direction.
+        Offsets in {−1, 0, 1} (3 or more cells), {0, 1} (2 periodic cells) or {0} (1 cell)
+        per direction.
     """
     d = n_cells.shape[0]
     choices = np.empty(d, dtype=np.int64)
     total = 1
     for mu in range(d):
-        choices[mu] = min(n_cells[mu], 3)
+        choices[mu] = min(n_cells[mu], 3) if periodic[mu] or n_cells[mu] == 1 else 3
         total *= choices[mu]
     offsets = np.empty((total, d), dtype=np.int64)
     for k in range(total):
@@ -50,19 +56,24 @@ def cell_offsets(n_cells: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def verlet_lists(x: np.ndarray, box: np.ndarray, diameters: np.ndarray, skin: float):
+def verlet_lists(x: np.ndarray, box: np.ndarray, diameters: np.ndarray, skin: float,
+                 periodic: np.ndarray):
     """Every pair with |r_ij| < σ_ij + skin, as per-particle neighbour lists (CSR).
 
     Parameters
     ----------
     x : ndarray, shape (N, d)
-        Positions, wrapped into [0, L).
+        Positions, wrapped into [0, L) along the periodic axes; along the others a position
+        outside [0, L) is counted in the edge cell.
     box : ndarray, shape (d,)
-        Box sides L_μ; the largest search radius max σ + skin must be below L_μ / 2.
+        Box sides L_μ; along a periodic axis the largest search radius max σ + skin must be
+        below L_μ / 2.
     diameters : ndarray, shape (N,)
         Current diameters σ_i.
     skin : float
         Extra distance beyond contact, in length units (≥ 0).
+    periodic : ndarray, shape (d,), bool
+        Periodic axes: the cells wrap and pairs meet by the minimum image along these only.
 
     Returns
     -------
@@ -102,8 +113,8 @@ def verlet_lists(x: np.ndarray, box: np.ndarray, diameters: np.ndarray, skin: fl
     for i in range(n):
         members[fill[cell[i]]] = i
         fill[cell[i]] += 1
-    offsets = cell_offsets(n_cells)
-    inv = 1.0 / box
+    offsets = cell_offsets(n_cells, periodic)
+    inv = inverse_sides(box, periodic)
     # Pairs i < j within reach of each other.
     capacity = 16 * n
     pair_i = np.empty(capacity, dtype=np.int64)
@@ -113,7 +124,13 @@ def verlet_lists(x: np.ndarray, box: np.ndarray, diameters: np.ndarray, skin: fl
         for k in range(offsets.shape[0]):
             c = 0
             for mu in range(d):
-                c += ((coords[i, mu] + offsets[k, mu]) % n_cells[mu]) * stride[mu]
+                neighbour = coords[i, mu] + offsets[k, mu]
+                if not periodic[mu] and (neighbour < 0 or neighbour >= n_cells[mu]):
+                    c = -1
+                    break
+                c += (neighbour % n_cells[mu]) * stride[mu]
+            if c < 0:
+                continue
             for q in range(counts[c], counts[c + 1]):
                 j = members[q]
                 if j <= i:

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from .cells import verlet_lists
-from .periodic import image_component, wrap_into_box
+from .periodic import image_component, inverse_sides, wrap_into_box
 
 __all__ = ["run_window", "skin_length"]
 
@@ -204,7 +204,7 @@ def _temperature(v):
 
 @njit(cache=True)
 def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_every, skin,
-               max_time):
+               max_time, periodic):
     """Run event-driven MD with growing diameters for `n_collisions` collisions.
 
     Parameters
@@ -273,20 +273,20 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
     start = np.zeros(n + 1, dtype=np.int64)
     neighbours = np.zeros(0, dtype=np.int64)
     r = np.empty(d)
-    inv = 1.0 / box
+    inv = inverse_sides(box, periodic)
     while True:
         if rebuild or resync:
             for i in range(n):
                 _advance(x, v, tl, i, t)
             if rebuild:
                 rebuilds += 1
-                wrap_into_box(x, box)
+                wrap_into_box(x, box, periodic)
                 xb[:, :] = x
                 build_scale = scale + rate * t
                 delta = skin_length(box, n, build_scale, s_mean, s_max, skin)
                 if delta <= 0.0:
                     raise ValueError("particles too large for the box: no room for a neighbour list")
-                start, neighbours = verlet_lists(x, box, s * build_scale, delta)
+                start, neighbours = verlet_lists(x, box, s * build_scale, delta, periodic)
             now = scale + rate * t
             c_exp = 0.5 * (delta - s_max * (now - build_scale))
             for i in range(n):
@@ -362,5 +362,5 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
     kt_time += 0.5 * (kt_start + _temperature(v)) * (t - t_rescale)
     for i in range(n):
         _advance(x, v, tl, i, t)
-    wrap_into_box(x, box)
+    wrap_into_box(x, box, periodic)
     return t, scale + rate * t, virial, kt_time, collisions, rebuilds

@@ -13,7 +13,7 @@ from ._checks import (check_diameters, check_dimension, check_phi, check_positiv
                       phi_estimate, remove_roundoff_overlap)
 from ._progress import Progress
 from .cells import verlet_lists
-from .periodic import image_component, wrap_into_box
+from .periodic import image_component, inverse_sides, wrap_into_box
 from .initial import poisson
 from .result import GenerationResult, make_history
 
@@ -21,7 +21,7 @@ __all__ = ["force_biased"]
 
 
 @njit(cache=True)
-def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin):
+def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin, periodic):
     """Run up to `n_steps` FB steps on positions `x` (in place).
 
     Each step, at the nominal ("outer") diameters s_i · outer:
@@ -46,10 +46,10 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin)
     n, d = x.shape
     delta = skin * s.mean() * outer
     xb = x.copy()
-    start, neighbours = verlet_lists(x, box, s * outer, delta)
+    start, neighbours = verlet_lists(x, box, s * outer, delta, periodic)
     force = np.zeros((n, d))
     r = np.empty(d)
-    inv = 1.0 / box
+    inv = inverse_sides(box, periodic)
     inner = 0.0
     for step in range(n_steps + 1):
         inner = np.inf
@@ -92,9 +92,9 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin)
         j_exp = np.ceil(-np.log10(gap)) if gap > 0 else 0.0
         outer -= 0.5 ** max(j_exp, 0.0) * contraction
         if np.sqrt(moved) > 0.5 * delta:
-            wrap_into_box(x, box)
+            wrap_into_box(x, box, periodic)
             xb[:, :] = x
-            start, neighbours = verlet_lists(x, box, s * outer, delta)
+            start, neighbours = verlet_lists(x, box, s * outer, delta, periodic)
     return outer, inner, n_steps, False
 
 
@@ -168,7 +168,8 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
     try:
         while not finished and steps < max_steps:
             outer, inner, done, finished = _fb_steps(
-                x, s, box, outer, phi_nominal, step_size, tau, min(50, max_steps - steps), skin)
+                x, s, box, outer, phi_nominal, step_size, tau, min(50, max_steps - steps), skin,
+                start.periodic)
             steps += done
             phi_inner = phi_nominal * inner**d
             gap = max(phi_nominal * outer**d - phi_inner, 0.0)

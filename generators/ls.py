@@ -52,6 +52,7 @@ class GrowingSpheres(Resumable):
 
     def __init__(self, packing: Packing, temperature: float, seed: int, skin: float) -> None:
         self.box = np.array(packing.box, dtype=np.float64)
+        self.periodic = np.asarray(packing.periodic, dtype=np.bool_)
         self.x = np.array(packing.wrapped().positions, dtype=np.float64)
         mean = packing.mean_diameter
         check_no_duplicates(self.x, self.box, SAME_PLACE * mean)
@@ -84,7 +85,7 @@ class GrowingSpheres(Resumable):
         kt = self.temperature if temperature is None else temperature
         elapsed, scale, virial, kt_time, collisions, rebuilds = run_window(
             self.x, self.v, self.nominal, self.box, self.scale, rate, kt, n_collisions, 2 * n,
-            self.skin, np.inf)
+            self.skin, np.inf, self.periodic)
         self.scale = scale
         self.time += elapsed
         self.collisions += collisions

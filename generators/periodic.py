@@ -12,15 +12,41 @@ from numba import njit
 
 from calippso import periodic
 
-__all__ = ["image_component", "wrap_coordinate", "wrap_into_box"]
+__all__ = ["image_component", "wrap_coordinate", "wrap_into_box", "inverse_sides",
+           "all_periodic"]
 
 image_component = njit(cache=True, inline="always")(periodic.image_component)
 wrap_coordinate = njit(cache=True, inline="always")(periodic.wrap_coordinate)
 
 
+def all_periodic(d: int) -> np.ndarray:
+    """The mask of a box periodic along every axis, shape (d,), bool (all True)."""
+    return np.ones(d, dtype=np.bool_)
+
+
 @njit(cache=True)
-def wrap_into_box(x: np.ndarray, box: np.ndarray) -> None:
-    """Wrap positions into [0, L) in place (`wrap_coordinate` on every coordinate).
+def inverse_sides(box: np.ndarray, periodic: np.ndarray) -> np.ndarray:
+    """1 / L_μ along the periodic axes and 0 along the others, shape (d,): the `inverse`
+    argument of `image_component`, which then leaves a bounded axis's component alone.
+
+    Parameters
+    ----------
+    box : ndarray, shape (d,)
+        Box sides L_μ (length units).
+    periodic : ndarray, shape (d,), bool
+        Periodic axes (`calippso.boundaries.Boundaries.periodic`).
+    """
+    inverse = np.zeros(box.shape[0])
+    for mu in range(box.shape[0]):
+        if periodic[mu]:
+            inverse[mu] = 1.0 / box[mu]
+    return inverse
+
+
+@njit(cache=True)
+def wrap_into_box(x: np.ndarray, box: np.ndarray, periodic: np.ndarray) -> None:
+    """Wrap positions into [0, L) in place along the periodic axes (`wrap_coordinate`); the
+    coordinates along the other axes (walls) are left alone.
 
     Parameters
     ----------
@@ -28,7 +54,10 @@ def wrap_into_box(x: np.ndarray, box: np.ndarray) -> None:
         Positions (length units), overwritten.
     box : ndarray, shape (d,)
         Box sides L_μ (length units).
+    periodic : ndarray, shape (d,), bool
+        Periodic axes.
     """
     for i in range(x.shape[0]):
         for mu in range(x.shape[1]):
-            x[i, mu] = wrap_coordinate(x[i, mu], box[mu])
+            if periodic[mu]:
+                x[i, mu] = wrap_coordinate(x[i, mu], box[mu])

@@ -15,16 +15,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calippso.boundaries import PERIODIC, WALLS, Boundaries
 from calippso.packing import Packing, ball_volume
 from calippso.rattlers import remove_rattlers
 
 from . import _fire, _lbfgs
-from ._checks import (check_diameters, check_dimension, check_phi, check_positive,
-                      phi_estimate, remove_roundoff_overlap)
+from ._checks import (check_boundaries, check_diameters, check_dimension, check_phi,
+                      check_positive, phi_estimate, remove_roundoff_overlap, wall_gaps)
 from .checkpoint import Checkpoint, Resumable, digest
 from ._progress import Progress
 from .cells import verlet_lists
-from .periodic import wrap_into_box
+from .periodic import all_periodic, wrap_into_box
 from .initial import poisson
 from .result import GenerationResult, make_history
 
@@ -85,10 +86,13 @@ MINIMISERS = ("auto", "fire", "lbfgs")
 #: 11 / 33 at N = 2048, 410 / 531 at 4096, 1334 / 233 at 8192, 977 / 1235 at 16384), and
 #: each L-BFGS evaluation costs 1.3–1.7 FIRE steps (docs/generators.md, Run time).
 LBFGS_FROM_DIMENSION = 4
+#: The boundary kinds `soft_quench` handles.
+BOUNDARY_KINDS = (PERIODIC, WALLS)
 
 
 class _SoftSpheres(Resumable):
-    """Harmonic spheres in a periodic box, kept sorted by cell for cache locality.
+    """Harmonic spheres in a box, periodic or closed by flat walls along each axis, kept
+    sorted by cell for cache locality.
 
     Parameters
     ----------
@@ -101,6 +105,9 @@ class _SoftSpheres(Resumable):
         Largest Verlet skin, in mean diameters (the skin adapts below it).
     minimiser : str
         "fire" (`_fire.fire_run`) or "lbfgs" (`_lbfgs.lbfgs_run`).
+    periodic : ndarray, shape (d,), bool, optional
+        Periodic axes; flat harmonic walls at 0 and L_μ along the others (`_fire`). None:
+        every axis periodic.
 
     Attributes
     ----------
@@ -117,9 +124,12 @@ class _SoftSpheres(Resumable):
     """
 
     def __init__(self, positions: np.ndarray, nominal: np.ndarray, box: np.ndarray,
-                 skin: float, minimiser: str = "fire") -> None:
+                 skin: float, minimiser: str = "fire",
+                 periodic: np.ndarray | None = None) -> None:
         n, d = positions.shape
         self.box = box
+        self.periodic = all_periodic(d) if periodic is None else np.asarray(periodic,
+                                                                            dtype=np.bool_)
         self.max_skin = skin
         self.skin = skin
         self.x = positions.copy()
@@ -172,8 +182,9 @@ class _SoftSpheres(Resumable):
         return self.phi_unit * self.scale ** self.x.shape[1]
 
     def rebuild(self) -> None:
-        """Wrap, re-sort the particles by cell, and rebuild the Verlet lists."""
-        wrap_into_box(self.x, self.box)
+        """Wrap (along the periodic axes), re-sort the particles by cell, and rebuild the
+        Verlet lists."""
+        wrap_into_box(self.x, self.box, self.periodic)
         order = _fire.cell_order(self.x, self.box, self.scale * self.s.max() + self.skin)
         self.x, self.v, self.s, self.ids = (self.x[order], self.v[order], self.s[order],
                                             self.ids[order])
@@ -190,10 +201,11 @@ class _SoftSpheres(Resumable):
         """Verlet lists of the positions and scale at the last build, and the share of
         their pairs that do not overlap (`waste`)."""
         self.lists = _fire.pair_lists(*verlet_lists(self.x_built, self.box,
-                                                    self.scale_built * self.s, self.skin))
+                                                    self.scale_built * self.s, self.skin,
+                                                    self.periodic))
         listed = len(self.lists[1])
         overlapping = len(_fire.contact_pairs(self.x_built, self.s, self.scale_built, self.box,
-                                              *self.lists[:2], 0.0)[0])
+                                              *self.lists[:2], 0.0, self.periodic)[0])
         self.waste = 1.0 - overlapping / listed if listed else 1.0
 
     def _adapt_skin(self) -> None:
@@ -278,34 +290,59 @@ class _SoftSpheres(Resumable):
             return _lbfgs.lbfgs_run(
                 self.x, self.f, self.s, self.box, *self.lists, self.x_built, self.skin,
                 self.scale_built, self.method, self.memory_x, self.memory_u, tolerance,
-                self.force_floor, pressure, max_steps)
+                self.force_floor, pressure, max_steps, self.periodic)
         return _fire.fire_run(
             self.x, self.v, self.f, self.s, self.box, *self.lists, self.x_built,
             self.skin, self.scale_built, self.method, DT_MAX_FACTOR * self.dt0,
             _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure,
-            max_steps)
+            max_steps, self.periodic)
 
     def pairs_below(self, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs with relative gap |r|/σ − 1 below `gap`, in original particle indices,
         i < j, sorted lexicographically, with their gaps."""
         self.rebuild()
         i, j, gaps = _fire.contact_pairs(self.x, self.s, self.scale, self.box, *self.lists[:2],
-                                         gap)
+                                         gap, self.periodic)
         i, j = self.ids[i], self.ids[j]
         i, j = np.minimum(i, j), np.maximum(i, j)
         order = np.lexsort((j, i))
         return i[order], j[order], gaps[order]
 
+    def walls_below(self, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Particle–wall pairs with relative gap δ/(σ_i/2) − 1 below `gap` (`_checks.wall_gaps`;
+        walls 2μ at 0, 2μ + 1 at L_μ), in original particle indices, sorted by particle then
+        wall, with their gaps; empty in a periodic box."""
+        particle, wall, gaps = wall_gaps(self.x, self.scale * self.s, self.box, self.periodic)
+        below = gaps < gap
+        particle, wall, gaps = self.ids[particle[below]], wall[below], gaps[below]
+        order = np.lexsort((wall, particle))
+        return particle[order], wall[order], gaps[order]
+
     def overlap_network(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs overlapping by more than `TOUCH` (`pairs_below`)."""
         return self.pairs_below(-TOUCH)
 
+    def wall_overlaps(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Particle–wall pairs overlapping by more than `TOUCH` (`walls_below`)."""
+        return self.walls_below(-TOUCH)
+
+    def isostatic_count(self, stable: int) -> int:
+        """Contacts (pairs and walls) of an isostatic network of `stable` particles:
+        d N_s + 1 − (periodic axes), which is d (N_s − 1) + 1 in a periodic box."""
+        return self.x.shape[1] * stable + 1 - int(np.count_nonzero(self.periodic))
+
     def stable_network(self) -> tuple[np.ndarray, int]:
-        """The overlap network without rattlers (recursively), shape (M, 2), sorted, and the
-        number of particles it holds."""
+        """The overlap network without rattlers (recursively; a wall contact counts for its
+        particle), shape (M + K, 2), sorted, and the number of particles it holds. Its M
+        pairs come first, then its K wall contacts as (particle, N + wall)."""
+        n = self.x.shape[0]
         i, j, _ = self.overlap_network()
-        rattlers, kept = remove_rattlers(self.x.shape[0], self.x.shape[1], i, j)
-        return np.stack([i[kept], j[kept]], axis=1), int(np.count_nonzero(~rattlers))
+        particle, wall, _ = self.wall_overlaps()
+        rattlers, kept = remove_rattlers(n, self.x.shape[1], i, j, particle)
+        on_wall = ~rattlers[particle]
+        network = np.concatenate([np.stack([i[kept], j[kept]], axis=1),
+                                  np.stack([particle[on_wall], n + wall[on_wall]], axis=1)])
+        return network, int(np.count_nonzero(~rattlers))
 
     def positions(self) -> np.ndarray:
         """Positions in the original particle order, shape (N, d)."""
@@ -327,16 +364,25 @@ def _pressure_ladder(final: float) -> np.ndarray:
 
 
 def _check_box(box: np.ndarray, nominal: np.ndarray, skin: float, phi_start: float,
-               densest: float) -> None:
-    """ValueError if the list reach (largest diameter + skin) may not stay below half the box.
+               densest: float, periodic: np.ndarray) -> None:
+    """ValueError if the list reach (largest diameter + skin) may not stay below half a
+    periodic side of the box, or the largest diameter not below a side between walls.
 
     The diameters grow by (φ/φ_start)^(1/d) when the quench compresses; `densest` bounds φ.
     """
     growth = max(1.0, densest / phi_start) ** (1.0 / box.shape[0])
-    reach = float(nominal.max()) * growth + skin
-    if reach >= 0.5 * float(box.min()):
-        raise ValueError(f"too few particles: the box side {box.min():.3g} (mean diameters) is "
-                         f"not above twice the largest diameter plus the skin ({reach:.3g} "
+    largest = float(nominal.max()) * growth
+    reach = largest + skin
+    periodic_sides = box[periodic]
+    if periodic_sides.size and reach >= 0.5 * float(periodic_sides.min()):
+        raise ValueError(f"too few particles: the box side {periodic_sides.min():.3g} (mean "
+                         f"diameters) is not above twice the largest diameter plus the skin "
+                         f"({reach:.3g} at φ = {max(densest, phi_start):.3g}); use more "
+                         f"particles")
+    walled_sides = box[~periodic]
+    if walled_sides.size and largest >= float(walled_sides.min()):
+        raise ValueError(f"too few particles: the walls are {walled_sides.min():.3g} mean "
+                         f"diameters apart, not wider than the largest diameter ({largest:.3g} "
                          f"at φ = {max(densest, phi_start):.3g}); use more particles")
 
 
@@ -344,7 +390,8 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
                 target_pressure: float = 1e-7, force_tolerance: float = 1e-6,
                 progress: bool = False, skin: float = 0.2, max_steps: int = 50_000_000,
                 checkpoint: str | os.PathLike | None = None,
-                checkpoint_every: float = 60.0, minimiser: str = "auto") -> GenerationResult:
+                checkpoint_every: float = 60.0, minimiser: str = "auto",
+                boundaries: Boundaries | None = None) -> GenerationResult:
     """Quench harmonic soft spheres to a vanishing pressure, then shrink them to hard contact.
 
     The route of O'Hern, Silbert, Liu & Nagel (2003) into a hard-sphere jamming basin, with
@@ -405,6 +452,13 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         The minimiser of the enthalpy: FIRE 2.0, or L-BFGS with a Wolfe line search
         (`steps` then counts force evaluations); "auto" takes L-BFGS in d ≥ 4 and FIRE in
         d = 2, 3. Both stop on the same convergence test.
+    boundaries : calippso.Boundaries, optional
+        The container: periodic along every axis (None, the default) or flat walls at 0 and
+        L along some axes (`Boundaries.walls`; a cylinder is refused). A particle closer to
+        a wall than its radius σ_i/2 overlaps it by σ_i/2 − δ and has the energy of a pair
+        with that overlap; its virial (force × δ) is in the pressure. The compression grows
+        the diameters in a fixed box, which is the box shrinking affinely, walls and all.
+        Along a walled axis there is no minimum image and no wrap.
 
     Returns
     -------
@@ -429,13 +483,21 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         (N_s), ``overlap_correction`` (round-off shrink after an independent check, ~0),
         ``resumed`` (whether the run continued from a checkpoint; `wall_time` then adds up
         every call's time), ``minimiser`` ("fire" or "lbfgs": the one that ran).
+        With walls the packing carries the boundaries and lies inside its container;
+        `contacts` holds particle pairs only (the stable particles are found with the wall
+        contacts counted), and ``wall_contacts`` (particle, wall) pairs, walls 2μ at 0 and
+        2μ + 1 at L_μ, shape (K, 2), sorted, with ``wall_overlaps`` (1 − δ/(σ_i/2) of each,
+        shape (K,)), hold the stable particles' overlaps with the walls before the shrink;
+        ``isostaticity_gap`` is then N_c − (d N_s + 1 − periodic axes) with N_c counting
+        both. Periodic: both empty.
 
     Raises
     ------
     ValueError
         On non-positive diameters, d < 2, phi_start outside (0, 1), non-positive pressure,
-        tolerance or skin, a non-positive max_steps, too few particles for the box, or a
-        checkpoint file that belongs to another run (one line naming the file).
+        tolerance or skin, a non-positive max_steps, too few particles for the box, a
+        cylinder, or a checkpoint file that belongs to another run (one line naming the
+        file).
     """
     wall = time.perf_counter()
     diameters = check_diameters(diameters)
@@ -452,19 +514,22 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         raise ValueError(f"minimiser must be one of {', '.join(MINIMISERS)}, got {minimiser!r}")
     if minimiser == "auto":
         minimiser = "lbfgs" if d >= LBFGS_FROM_DIMENSION else "fire"
-    saver = Checkpoint(checkpoint, "soft_quench",
-                       {"diameters": digest(diameters), "d": d, "seed": int(seed),
-                        "phi_start": phi_start, "target_pressure": target_pressure,
-                        "force_tolerance": force_tolerance, "skin": skin,
-                        "minimiser": minimiser},
+    boundaries = check_boundaries(boundaries, d, "soft_quench", BOUNDARY_KINDS)
+    signature = {"diameters": digest(diameters), "d": d, "seed": int(seed),
+                 "phi_start": phi_start, "target_pressure": target_pressure,
+                 "force_tolerance": force_tolerance, "skin": skin, "minimiser": minimiser}
+    if not boundaries.is_periodic:       # (absent from the checkpoints of periodic runs)
+        signature["boundaries"] = str(boundaries)
+    saver = Checkpoint(checkpoint, "soft_quench", signature,
                        every=check_positive(checkpoint_every, "checkpoint_every",
                                             allow_zero=True))
     mean = float(diameters.mean())
-    start = poisson(diameters, d, phi=phi_start, seed=seed)
+    start = poisson(diameters, d, phi=phi_start, seed=seed, boundaries=boundaries)
     box = start.box / mean
     nominal = diameters / mean
-    _check_box(box, nominal, skin, phi_start, PHI_START_FACTOR * typical)
-    system = _SoftSpheres(start.positions / mean, nominal, box, skin, minimiser)
+    _check_box(box, nominal, skin, phi_start, PHI_START_FACTOR * typical, boundaries.periodic)
+    system = _SoftSpheres(start.positions / mean, nominal, box, skin, minimiser,
+                          boundaries.periodic)
     run = _Run(_pressure_ladder(TARGET_AIM * target_pressure), force_tolerance, max_steps)
     earlier_wall = 0.0
     saved = saver.load()
@@ -488,7 +553,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     else:
         status = f"converged at pressure {pressure:.3g} <= target {target_pressure:.3g}"
         pause(True)
-    return _shrunk_result(system, diameters, mean, run.rows, pressure, status,
+    return _shrunk_result(system, diameters, mean, boundaries, run.rows, pressure, status,
                           wall - earlier_wall, saved is not None)
 
 
@@ -576,13 +641,12 @@ class _Run:
 
         The tolerance drops tenfold each round, down to `force_tolerance`; the tightening
         stops early once two rounds in a row leave the same overlap network without
-        rattlers, and that network is not hypostatic (in practice below 1e-5 of the mean
-        force, docs/notes/soft-quench-protocol.md).
+        rattlers (wall contacts included), and that network is not hypostatic (in practice
+        below 1e-5 of the mean force, docs/notes/soft-quench-protocol.md).
         """
         network, stable = system.stable_network()
-        d = system.x.shape[1]
         if (self.round > 0 and np.array_equal(network, self.previous)
-                and len(network) >= d * (stable - 1) + 1):
+                and len(network) >= system.isostatic_count(stable)):
             return False
         if self.tolerance() <= self.force_tolerance:
             return False
@@ -590,16 +654,20 @@ class _Run:
         return True
 
 
-def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, rows: list,
-                   pressure: float, status: str, started: float,
-                   resumed: bool) -> GenerationResult:
-    """Shrink the overlaps away, find the network without rattlers, build the result."""
+def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float,
+                   boundaries: Boundaries, rows: list, pressure: float, status: str,
+                   started: float, resumed: bool) -> GenerationResult:
+    """Shrink the overlaps (with particles and walls) away, find the network without
+    rattlers, build the result."""
     n, d = system.x.shape
     i, j, gaps = system.overlap_network()
-    rattlers, kept = remove_rattlers(n, d, i, j)
+    particle, wall, wall_gap = system.wall_overlaps()
+    rattlers, kept = remove_rattlers(n, d, i, j, particle)
+    on_wall = ~rattlers[particle]
     contacts = np.stack([i[kept], j[kept]], axis=1).astype(np.int64)
+    wall_contacts = np.stack([particle[on_wall], wall[on_wall]], axis=1).astype(np.int64)
     stable = int(n - np.count_nonzero(rattlers))
-    worst = float(gaps.min()) if gaps.size else 0.0
+    worst = float(np.concatenate([gaps, wall_gap]).min()) if gaps.size + wall_gap.size else 0.0
     shrink = (1.0 + min(worst, 0.0)) / (1.0 + SHRINK_GAP)
     near_i, near_j, near_gaps = system.pairs_below(-worst)
     near = near_gaps >= -TOUCH
@@ -607,8 +675,8 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, row
     factor = mean / (system.scale * shrink)
     positions = system.positions() * factor
     box = system.box * factor
-    sizes, correction = remove_roundoff_overlap(positions, diameters, box)
-    packing = Packing(positions, sizes, box).wrapped()
+    sizes, correction = remove_roundoff_overlap(positions, diameters, box, boundaries.periodic)
+    packing = Packing(positions, sizes, box, boundaries).wrapped()
     return GenerationResult(
         packing=packing, reduced_pressure=float("nan"), steps=system.steps,
         wall_time=time.perf_counter() - started, history=make_history(rows), status=status,
@@ -618,6 +686,8 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float, row
                "max_overlap": -worst, "contact_overlaps": -gaps[kept],
                "near_contacts": np.stack([near_i[near], near_j[near]], axis=1),
                "near_gaps": near_gaps[near], "stable": stable,
-               "isostaticity_gap": int(contacts.shape[0]) - (d * (stable - 1) + 1),
+               "wall_contacts": wall_contacts, "wall_overlaps": -wall_gap[on_wall],
+               "isostaticity_gap": (int(contacts.shape[0] + wall_contacts.shape[0])
+                                    - system.isostatic_count(stable)),
                "overlap_correction": correction, "resumed": resumed,
                "minimiser": system.minimiser})

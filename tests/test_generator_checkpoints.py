@@ -390,3 +390,44 @@ def test_quench_checkpoint_of_another_run_is_refused(tmp_path):
     with pytest.raises(ValueError, match="checkpoint_every"):
         generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=-1,
                                minimiser="fire")
+
+
+@pytest.mark.parametrize("minimiser", ["fire", "lbfgs"])
+def test_walled_quench_killed_mid_minimisation_resumes_bit_for_bit(tmp_path, monkeypatch,
+                                                                   minimiser):
+    """Between flat walls (bidisperse discs, walls in x and y) a quench killed half-way through
+    its steps resumes from its checkpoint and ends where the uninterrupted run ends, wall
+    contacts and boundaries included; the checkpoint is refused by the periodic run."""
+    import importlib
+
+    from calippso import Boundaries
+
+    walls = Boundaries.walls(2, ["x", "y"])
+    sizes, d = QUENCH_CASES["d2_bidisperse"]
+    reference = generators.soft_quench(sizes, d, seed=7, minimiser=minimiser, boundaries=walls)
+    module_name, kernel, _ = QUENCH_KERNELS[minimiser]
+    module = importlib.import_module(f"generators.{module_name}")
+    real_run, taken = getattr(module, kernel), []
+
+    def crashing_run(*args):
+        if sum(taken) >= 0.5 * reference.steps:
+            raise _Crash
+        result = real_run(*args)
+        taken.append(result[1])
+        return result
+
+    monkeypatch.setattr(module, kernel, crashing_run)
+    path = tmp_path / "walled.npz"
+    with pytest.raises(_Crash):
+        generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=0,
+                               minimiser=minimiser, boundaries=walls)
+    monkeypatch.setattr(module, kernel, real_run)
+    resumed = generators.soft_quench(sizes, d, seed=7, checkpoint=path, checkpoint_every=0,
+                                     minimiser=minimiser, boundaries=walls)
+    assert resumed.extra["resumed"]
+    assert_same_quench(resumed, reference)
+    assert resumed.packing.boundaries == walls
+    np.testing.assert_array_equal(resumed.extra["wall_contacts"],
+                                  reference.extra["wall_contacts"])
+    with pytest.raises(ValueError, match="differs in boundaries"):
+        generators.soft_quench(sizes, d, seed=7, checkpoint=path, minimiser=minimiser)
