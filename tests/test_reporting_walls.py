@@ -189,3 +189,21 @@ def test_pictures_draw_the_walls(tmp_path, monkeypatch):
                                  boundaries=Boundaries.walls(3, ["x", "y"]))
     frame.render_spheres(spheres, tmp_path / "spheres.png", backend="matplotlib", size=200)
     assert len(_wall_lines(figures[-1])) == 4                # the outlines of four faces
+
+
+def test_the_walls_example_prints_a_layered_profile(tmp_path, monkeypatch, capsys):
+    """examples/walls_layering.py --tiny: isostatic between walls, sparse at the wall, the
+    picture written (also a case of tests/test_examples.py)."""
+    pytest.importorskip("matplotlib")
+    import runpy
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "examples" / "walls_layering.py"
+    monkeypatch.chdir(tmp_path)
+    runpy.run_path(str(script), run_name="example_walls_layering")["main"](
+        ["--tiny", "--picture", "--out", str(tmp_path)])
+    output = capsys.readouterr().out
+    assert "(isostatic)" in output and "walls in x" in output
+    first = next(line for line in output.splitlines() if line.startswith("   0.12"))
+    assert float(first.split()[1]) < WALL_BIN_PHI * 2        # a quarter-diameter bin at the wall
+    assert (tmp_path / "layering.png").stat().st_size > 0
