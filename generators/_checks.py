@@ -85,6 +85,9 @@ def check_boundaries(boundaries, d: int, generator: str, kinds: tuple[str, ...])
     if boundaries.d != d:
         raise ValueError(f"boundaries have {boundaries.d} axes, expected d = {d}")
     unsupported = sorted(set(boundaries.kinds) - set(kinds))
+    if unsupported and kinds == ("periodic",):
+        raise ValueError(f"{generator} makes periodic packings only, got "
+                         f"{boundaries.describe()}")
     if unsupported:
         raise ValueError(f"{generator} does not handle {', '.join(unsupported)} boundaries "
                          f"({boundaries.describe()}); it takes {', '.join(kinds)}")

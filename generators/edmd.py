@@ -11,6 +11,13 @@ Events, one per particle, kept in an indexed binary min-heap:
   speed at which the contact distance grows, so the pair separates faster than it grows; the
   impulse J = w − u goes into the collisional virial. A prediction stores the partner's
   collision counter and is discarded when it is popped after the partner has collided.
+* collision with a flat wall (along an axis that is not periodic, walls at 0 and L_μ): the
+  smallest τ > 0 with x_iμ + v_iμ τ = σ_i(t + τ)/2 (wall at 0) or L_μ − σ_i(t + τ)/2 (at L_μ).
+  The wall is a fixed body of infinite mass: the normal velocity u = v_i·n (n the wall's
+  inward normal) is replaced by 2w − u, w = s_i γ/2 the speed at which the contact distance
+  σ_i/2 grows, as in a pair collision with the partner held still; the impulse 2(w − u) times
+  the contact distance σ_i/2 goes into the collisional virial (the pressure on the walls,
+  docs/theory.md). Its prediction is valid until particle i itself collides.
 * neighbour-list expiry: the Verlet lists hold every pair with |r_ij| < S_ij a_b + δ at the
   build (scale a_b). A pair outside the lists cannot touch while every particle has moved less
   than h(t) = (δ − s_max (a(t) − a_b))/2 since the build, so the moment a particle reaches that
@@ -32,6 +39,8 @@ __all__ = ["run_window", "skin_length"]
 
 _NO_EVENT = -2
 _LIST_EXPIRY = -1
+#: Event partner of a collision with wall w (2μ at 0, 2μ + 1 at L_μ): _WALL − w.
+_WALL = -3
 
 
 @njit(cache=True)
@@ -138,8 +147,47 @@ def _expiry_time(x, xb, v, i, c, e):
 
 
 @njit(cache=True)
-def _predict(i, t, x, v, tl, s, box, inv, scale, rate, start, neighbours, counter, xb, c_exp, e_exp,
-             ev_time, ev_partner, ev_count):
+def _wall_event(i, x, v, s, box, periodic, scale, rate):
+    """Time to the first collision of particle i (synchronised) with a flat wall, and the
+    wall's number 2μ + side (side 0 at 0, 1 at L_μ); (inf, _NO_EVENT) without walls.
+
+    The gap to a wall closes at w − u, u the velocity along the wall's inward normal and
+    w = s_i γ/2 the growth of the radius; a particle touching (or, by round-off, crossing)
+    a wall and approaching it collides at once."""
+    best = np.inf
+    wall = _NO_EVENT
+    radius = 0.5 * s[i] * scale
+    growth = 0.5 * s[i] * rate
+    for mu in range(x.shape[1]):
+        if periodic[mu]:
+            continue
+        for side in range(2):
+            gap = x[i, mu] - radius if side == 0 else box[mu] - x[i, mu] - radius
+            closing = growth - v[i, mu] if side == 0 else growth + v[i, mu]
+            if closing <= 0.0:
+                continue
+            tau = max(gap, 0.0) / closing
+            if tau < best:
+                best = tau
+                wall = 2 * mu + side
+    return best, wall
+
+
+@njit(cache=True)
+def _wall_collision(i, wall, v, s, scale, rate):
+    """Reflect particle i off `wall` (2μ + side) at contact: u → 2w − u along the inward
+    normal (w = s_i γ/2); return the virial term (σ_i/2) × impulse (≥ 0)."""
+    mu = wall // 2
+    normal = 1.0 if wall % 2 == 0 else -1.0
+    u = v[i, mu] * normal
+    impulse = max(2.0 * (0.5 * s[i] * rate - u), 0.0)
+    v[i, mu] += impulse * normal
+    return 0.5 * s[i] * scale * impulse
+
+
+@njit(cache=True)
+def _predict(i, t, x, v, tl, s, box, inv, periodic, scale, rate, start, neighbours, counter, xb,
+             c_exp, e_exp, ev_time, ev_partner, ev_count):
     """Next event of particle i (synchronised at time t); stored in the ev_* arrays."""
     d = x.shape[1]
     best = t + _expiry_time(x, xb, v, i, c_exp, e_exp)
@@ -179,6 +227,10 @@ def _predict(i, t, x, v, tl, s, box, inv, scale, rate, start, neighbours, counte
             best = t + tau
             partner = j
             count = counter[j]
+    tau, wall = _wall_event(i, x, v, s, box, periodic, scale, rate)
+    if t + tau < best:
+        best = t + tau
+        partner = _WALL - wall
     ev_time[i] = best
     ev_partner[i] = partner
     ev_count[i] = count
@@ -210,7 +262,8 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
     Parameters
     ----------
     x : ndarray, shape (N, d)
-        Positions (non-overlapping at `scale`); updated in place, wrapped into the box.
+        Positions (non-overlapping at `scale`, inside the walls); updated in place, wrapped
+        into the box along the periodic axes.
     v : ndarray, shape (N, d)
         Velocities; updated in place.
     s : ndarray, shape (N,)
@@ -231,6 +284,9 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
         Verlet skin in mean nominal diameters (see `skin_length`).
     max_time : float
         Stop at this time even if fewer collisions happened.
+    periodic : ndarray, shape (d,), bool
+        Periodic axes; flat hard walls at 0 and L_μ along the others (no minimum image, no
+        wrap, wall collisions as events).
 
     Returns
     -------
@@ -239,11 +295,13 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
     scale_end : float
         a at the end.
     virial : float
-        Σ_c |r_c| J_c over the collisions (length × momentum).
+        Σ_c |r_c| J_c over the collisions (length × momentum); a wall collision adds σ_i/2 ×
+        its impulse.
     kt_time : float
         ∫ kT dt over the window (trapezoid between rescalings), for the reduced pressure
         p = 1 + virial / (d N kt_time).
     collisions : int
+        Pair and wall collisions.
     rebuilds : int
         Neighbour-list rebuilds.
     """
@@ -285,13 +343,14 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
                 build_scale = scale + rate * t
                 delta = skin_length(box, n, build_scale, s_mean, s_max, skin)
                 if delta <= 0.0:
-                    raise ValueError("particles too large for the box: no room for a neighbour list")
+                    raise ValueError("particles too large for the box: no room for a "
+                                     "neighbour list")
                 start, neighbours = verlet_lists(x, box, s * build_scale, delta, periodic)
             now = scale + rate * t
             c_exp = 0.5 * (delta - s_max * (now - build_scale))
             for i in range(n):
-                _predict(i, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb,
-                         c_exp, 0.5 * s_max * rate, ev_time, ev_partner, ev_count)
+                _predict(i, t, x, v, tl, s, box, inv, periodic, now, rate, start, neighbours,
+                         counter, xb, c_exp, 0.5 * s_max * rate, ev_time, ev_partner, ev_count)
             _heapify(heap, where, ev_time)
             rebuild = False
             resync = False
@@ -312,33 +371,38 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
         if j == _LIST_EXPIRY:
             rebuild = True
             continue
-        if j == _NO_EVENT or ev_count[i] != counter[j]:
+        at_wall = j <= _WALL
+        if j == _NO_EVENT or (not at_wall and ev_count[i] != counter[j]):
             _advance(x, v, tl, i, t)
-            _predict(i, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb, c_exp,
-                     e_exp, ev_time, ev_partner, ev_count)
+            _predict(i, t, x, v, tl, s, box, inv, periodic, now, rate, start, neighbours,
+                     counter, xb, c_exp, e_exp, ev_time, ev_partner, ev_count)
             _reposition(heap, where, ev_time, i)
             continue
         _advance(x, v, tl, i, t)
-        _advance(x, v, tl, j, t)
-        rr = 0.0
-        u = 0.0
-        for mu in range(d):
-            dx = image_component(x[i, mu] - x[j, mu], box[mu], inv[mu])
-            r[mu] = dx
-            rr += dx * dx
-        dist = np.sqrt(rr)
-        for mu in range(d):
-            r[mu] /= dist
-            u += (v[i, mu] - v[j, mu]) * r[mu]
-        impulse = 0.5 * (s[i] + s[j]) * rate - u
-        if impulse < 0.0:
-            impulse = 0.0
-        for mu in range(d):
-            v[i, mu] += impulse * r[mu]
-            v[j, mu] -= impulse * r[mu]
-        virial += dist * impulse
-        counter[i] += 1
-        counter[j] += 1
+        if at_wall:
+            virial += _wall_collision(i, _WALL - j, v, s, now, rate)
+            counter[i] += 1
+        else:
+            _advance(x, v, tl, j, t)
+            rr = 0.0
+            u = 0.0
+            for mu in range(d):
+                dx = image_component(x[i, mu] - x[j, mu], box[mu], inv[mu])
+                r[mu] = dx
+                rr += dx * dx
+            dist = np.sqrt(rr)
+            for mu in range(d):
+                r[mu] /= dist
+                u += (v[i, mu] - v[j, mu]) * r[mu]
+            impulse = 0.5 * (s[i] + s[j]) * rate - u
+            if impulse < 0.0:
+                impulse = 0.0
+            for mu in range(d):
+                v[i, mu] += impulse * r[mu]
+                v[j, mu] -= impulse * r[mu]
+            virial += dist * impulse
+            counter[i] += 1
+            counter[j] += 1
         collisions += 1
         since_rescale += 1
         if since_rescale >= rescale_every:
@@ -356,9 +420,11 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
             resync = True
             continue
         for k in (i, j):
-            _predict(k, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb, c_exp,
-                     e_exp, ev_time, ev_partner, ev_count)
+            _predict(k, t, x, v, tl, s, box, inv, periodic, now, rate, start, neighbours,
+                     counter, xb, c_exp, e_exp, ev_time, ev_partner, ev_count)
             _reposition(heap, where, ev_time, k)
+            if at_wall:                     # (j is a wall: particle i alone)
+                break
     kt_time += 0.5 * (kt_start + _temperature(v)) * (t - t_rescale)
     for i in range(n):
         _advance(x, v, tl, i, t)

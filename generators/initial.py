@@ -6,10 +6,10 @@ import warnings
 
 import numpy as np
 
-from calippso.boundaries import Boundaries
+from calippso.boundaries import PERIODIC, Boundaries
 from calippso.packing import Packing, ball_volume
 
-from ._checks import check_diameters, check_dimension, check_phi
+from ._checks import check_boundaries, check_diameters, check_dimension, check_phi
 
 __all__ = ["poisson", "start_of"]
 
@@ -72,8 +72,9 @@ def poisson(diameters, d: int, *, phi: float, seed: int = 0,
     return Packing(positions, diameters, np.full(d, side), boundaries).wrapped()
 
 
-def start_of(diameters, d: int | None, start: Packing | None, *, phi: float,
-             seed: int) -> tuple[Packing, bool]:
+def start_of(diameters, d: int | None, start: Packing | None, *, phi: float, seed: int,
+             boundaries: Boundaries | None = None, generator: str = "the generators",
+             kinds: tuple[str, ...] = (PERIODIC,)) -> tuple[Packing, bool]:
     """The packing a generator starts from: `start`, or Poisson centres for `diameters`.
 
     Parameters
@@ -88,6 +89,14 @@ def start_of(diameters, d: int | None, start: Packing | None, *, phi: float,
         Packing fraction of the Poisson centres made when there is no `start`.
     seed : int
         Seed of those centres.
+    boundaries : Boundaries, optional
+        The container of those centres (default periodic); with `start`, None or the
+        start's own.
+    generator : str
+        Name of the calling generator, for the messages.
+    kinds : tuple of str
+        The boundary kinds the generator handles (`calippso.boundaries.KINDS`); other
+        containers are refused in one line.
 
     Returns
     -------
@@ -99,7 +108,8 @@ def start_of(diameters, d: int | None, start: Packing | None, *, phi: float,
     Raises
     ------
     ValueError
-        When neither diameters and d nor `start` are given, or they contradict each other.
+        When neither diameters and d nor `start` are given, they contradict each other, or
+        the container is not one the generator handles.
     """
     if isinstance(diameters, Packing) and start is None:  # the calling style before start=
         warnings.warn("passing the start packing as the first argument is deprecated: pass "
@@ -108,12 +118,14 @@ def start_of(diameters, d: int | None, start: Packing | None, *, phi: float,
     if start is None:
         if diameters is None:
             raise ValueError("give diameters and d, or a start configuration as start=")
-        return poisson(diameters, d, phi=phi, seed=seed), True
+        boundaries = check_boundaries(boundaries, check_dimension(d), generator, kinds)
+        return poisson(diameters, d, phi=phi, seed=seed, boundaries=boundaries), True
     if not isinstance(start, Packing):
         raise ValueError(f"start must be a calippso.Packing, got {type(start).__name__}")
-    if not start.boundaries.is_periodic:
-        raise ValueError(f"the generators make periodic packings only; this start has "
-                         f"{start.boundaries.describe()}")
+    if boundaries is not None and boundaries != start.boundaries:
+        raise ValueError(f"boundaries ({boundaries.describe()}) contradict the start's "
+                         f"({start.boundaries.describe()}); give one or the other")
+    check_boundaries(start.boundaries, start.d, generator, kinds)
     if d is not None and d != start.d:
         raise ValueError(f"d = {d} contradicts the start's dimension {start.d}")
     if diameters is not None and not np.array_equal(check_diameters(diameters), start.diameters):

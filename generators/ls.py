@@ -6,7 +6,8 @@ import time
 
 import numpy as np
 
-from calippso.neighbors import SAME_PLACE, check_no_duplicates, contact_shrink
+from calippso.boundaries import PERIODIC, WALLS, Boundaries
+from calippso.neighbors import SAME_PLACE, check_no_duplicates, min_gap, shrink_to_margin
 from calippso.packing import Packing
 
 from ._checks import check_positive, remove_roundoff_overlap
@@ -18,6 +19,9 @@ from .result import GenerationResult, make_history
 
 __all__ = ["lubachevsky_stillinger", "GrowingSpheres"]
 
+#: The boundary kinds `lubachevsky_stillinger` handles.
+BOUNDARY_KINDS = (PERIODIC, WALLS)
+
 
 class GrowingSpheres(Resumable):
     """The state of an event-driven run (used by LS and MLS).
@@ -25,9 +29,9 @@ class GrowingSpheres(Resumable):
     Parameters
     ----------
     packing : Packing
-        Start; if it overlaps, all diameters are first scaled down by one factor until the
-        closest pair has a gap of 1e-9 σ (`calippso.neighbors.contact_shrink`; a Poisson
-        start begins at a tiny density).
+        Start, periodic or between flat walls (inside them); if it overlaps, all diameters
+        are first scaled down by one factor until the closest pair has a gap of 1e-9 σ
+        (`calippso.neighbors.shrink_to_margin`; a Poisson start begins at a tiny density).
         Particles at the same place (closer than 1e-12 mean diameters) are refused with a
         ValueError that names them.
     temperature : float
@@ -40,7 +44,9 @@ class GrowingSpheres(Resumable):
     Attributes
     ----------
     x, v : ndarray, shape (N, d)
-        Positions (wrapped) and velocities.
+        Positions (wrapped along the periodic axes) and velocities.
+    boundaries : Boundaries
+        The start's container; `periodic` its periodic axes, shape (d,), bool.
     nominal : ndarray, shape (N,)
         Nominal diameters s_i (mean 1); the diameters are s_i · scale.
     scale : float
@@ -52,12 +58,14 @@ class GrowingSpheres(Resumable):
 
     def __init__(self, packing: Packing, temperature: float, seed: int, skin: float) -> None:
         self.box = np.array(packing.box, dtype=np.float64)
+        self.boundaries = packing.boundaries
         self.periodic = np.asarray(packing.periodic, dtype=np.bool_)
         self.x = np.array(packing.wrapped().positions, dtype=np.float64)
         mean = packing.mean_diameter
-        check_no_duplicates(self.x, self.box, SAME_PLACE * mean)
+        check_no_duplicates(self.x, self.box, SAME_PLACE * mean, self.mask)
         self.nominal = np.asarray(packing.diameters, dtype=np.float64) / mean
-        self.start_shrink = contact_shrink(self.x, packing.diameters, self.box)
+        self.start_shrink = shrink_to_margin(min_gap(self.x, packing.diameters, self.box,
+                                                     self.mask)[0])
         self.scale = mean * self.start_shrink
         self.temperature = temperature
         self.skin = skin
@@ -72,7 +80,7 @@ class GrowingSpheres(Resumable):
     @property
     def phi(self) -> float:
         """Current packing fraction."""
-        return Packing(self.x, self.nominal * self.scale, self.box).phi
+        return Packing(self.x, self.nominal * self.scale, self.box, self.boundaries).phi
 
     def window(self, n_collisions: int, rate: float, temperature: float | None = None) -> float:
         """Run `n_collisions` collisions at growth rate `rate`; return the reduced pressure.
@@ -120,8 +128,13 @@ class GrowingSpheres(Resumable):
         packing and the relative correction applied (0 if none).
         """
         diameters, correction = remove_roundoff_overlap(self.x, self.nominal * self.scale,
-                                                        self.box)
-        return Packing(self.x.copy(), diameters, self.box), correction
+                                                        self.box, self.mask)
+        return Packing(self.x.copy(), diameters, self.box, self.boundaries), correction
+
+    @property
+    def mask(self) -> np.ndarray | None:
+        """The periodic axes for the numpy checks, None when all are (their fast path)."""
+        return None if self.boundaries.is_periodic else self.periodic
 
 
 def current_rate(rows: list[tuple], growth_rate: float, final_growth_rate: float | None,
@@ -142,7 +155,8 @@ def lubachevsky_stillinger(diameters=None, d: int | None = None, *, seed: int = 
                            progress: bool = False, pressure_window: int = 20,
                            skin: float = 0.1, final_growth_rate: float | None = None,
                            slowdown_pressure: float = 1e3, checkpoint=None,
-                           checkpoint_every: float = 60.0) -> GenerationResult:
+                           checkpoint_every: float = 60.0,
+                           boundaries: Boundaries | None = None) -> GenerationResult:
     """Compress hard spheres by Lubachevsky–Stillinger event-driven MD until a target pressure.
 
     Parameters
@@ -196,6 +210,14 @@ def lubachevsky_stillinger(diameters=None, d: int | None = None, *, seed: int = 
         input must be the same.
     checkpoint_every : float
         Smallest wall time in seconds between two checkpoint writes (0: every window).
+    boundaries : calippso.Boundaries, optional
+        The container of the Poisson centres made from `diameters`: periodic (None, the
+        default) or flat hard walls at 0 and L along some axes (`Boundaries.walls`; a
+        cylinder is refused). A `start` brings its own (this must then be None or the
+        same). A sphere meets a wall when its centre is σ_i(t)/2 from it and is reflected
+        elastically, the wall's growth of the contact distance s_i γ/2 added as in a pair
+        collision; the wall collisions add σ_i/2 × their impulse to the virial, so the
+        pressure is that on the walls. No minimum image and no wrap along walled axes.
 
     Returns
     -------
@@ -205,13 +227,16 @@ def lubachevsky_stillinger(diameters=None, d: int | None = None, *, seed: int = 
         `extra`: ``rebuilds`` (neighbour-list rebuilds), ``start_shrink`` (factor applied to
         an overlapping start), ``overlap_correction`` (relative shrink for round-off overlaps
         at the end, ~1e-15 or 0), ``time`` (simulated time), ``resumed`` (whether the run
-        continued from a checkpoint; `wall_time` then adds up every call's time).
+        continued from a checkpoint; `wall_time` then adds up every call's time). With
+        walls the packing carries the boundaries, every centre inside its walls; `steps`
+        counts pair and wall collisions.
 
     Raises
     ------
     ValueError
-        On non-positive diameters, d < 2, non-positive rate / pressure / temperature, or a
-        checkpoint file that belongs to another run.
+        On non-positive diameters, d < 2, non-positive rate / pressure / temperature, a
+        cylinder, boundaries that contradict the start's, or a checkpoint file that belongs
+        to another run.
     """
     wall = time.perf_counter()
     growth_rate = check_positive(growth_rate, "growth_rate")
@@ -224,12 +249,17 @@ def lubachevsky_stillinger(diameters=None, d: int | None = None, *, seed: int = 
             raise ValueError(f"final_growth_rate {final_growth_rate:g} exceeds growth_rate "
                              f"{growth_rate:g}")
     if pressure_window < 1:
-        raise ValueError(f"pressure_window must be >= 1 collision per particle, got {pressure_window}")
-    start, from_diameters = start_of(diameters, d, start, phi=phi_start, seed=seed)
+        raise ValueError(f"pressure_window must be >= 1 collision per particle, got "
+                         f"{pressure_window}")
+    start, from_diameters = start_of(diameters, d, start, phi=phi_start, seed=seed,
+                                     boundaries=boundaries, generator="lubachevsky_stillinger",
+                                     kinds=BOUNDARY_KINDS)
     state = GrowingSpheres(start, temperature, seed, check_positive(skin, "skin"))
     signature = {"growth_rate": growth_rate, "temperature": temperature, "seed": int(seed),
                  "pressure_window": int(pressure_window), "skin": float(skin),
                  "start": digest(start.positions, start.diameters, start.box)}
+    if not start.boundaries.is_periodic:     # (absent from the checkpoints of periodic runs)
+        signature["boundaries"] = str(start.boundaries)
     if final_growth_rate is not None:      # (absent from the checkpoints of one-rate runs)
         signature.update(final_growth_rate=final_growth_rate,
                          slowdown_pressure=slowdown_pressure)
@@ -274,12 +304,12 @@ def lubachevsky_stillinger(diameters=None, d: int | None = None, *, seed: int = 
     if from_diameters:
         factor = float(np.mean(start.diameters)) / packing.mean_diameter
         packing = Packing(packing.positions * factor, packing.diameters * factor,
-                          packing.box * factor).wrapped()
+                          packing.box * factor, packing.boundaries).wrapped()
         # the rescaling can round a contact into a 1e-16 overlap again: remove it as well
         diameters, rescaled = remove_roundoff_overlap(packing.positions, packing.diameters,
-                                                      packing.box)
+                                                      packing.box, state.mask)
         if rescaled:
-            packing = Packing(packing.positions, diameters, packing.box)
+            packing = Packing(packing.positions, diameters, packing.box, packing.boundaries)
             correction += rescaled
     return GenerationResult(
         packing=packing, reduced_pressure=float(pressure), steps=state.collisions,

@@ -110,7 +110,8 @@ def closest_jamming(diameters=None, d: int | None = None, *, seed: int = 0,
         belongs to another run.
     """
     wall = time.perf_counter()
-    packing, _ = start_of(diameters, d, start, phi=phi_start, seed=seed)
+    packing, _ = start_of(diameters, d, start, phi=phi_start, seed=seed,
+                          generator="closest_jamming")
     rate = check_positive(initial_rate, "initial_rate")
     final_rate = check_positive(final_rate, "final_rate")
     if final_rate > rate:

@@ -431,3 +431,25 @@ def test_walled_quench_killed_mid_minimisation_resumes_bit_for_bit(tmp_path, mon
                                   reference.extra["wall_contacts"])
     with pytest.raises(ValueError, match="differs in boundaries"):
         generators.soft_quench(sizes, d, seed=7, checkpoint=path, minimiser=minimiser)
+
+
+def test_walled_ls_pushed_to_a_higher_pressure_is_the_direct_run(tmp_path):
+    """Between walls (in x and z) an LS run stopped at p = 1e3 and continued to 1e6 from its
+    checkpoint is the run made at 1e6 directly, bit for bit, walls included; the checkpoint
+    is refused by the periodic run."""
+    from calippso import Boundaries
+
+    walls = Boundaries.walls(3, ["x", "z"])
+    args = {**LS_ARGS, "target_pressure": 1e6, "boundaries": walls}
+    direct = generators.lubachevsky_stillinger(dist.monodisperse(64), **args)
+    path = tmp_path / "walled_ls"
+    low = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
+                                            **{**args, "target_pressure": 1e3})
+    assert 1e3 <= low.reduced_pressure < 1e6
+    high = generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path, **args)
+    assert high.extra["resumed"]
+    assert_same(high, direct)
+    assert high.packing.boundaries == walls
+    with pytest.raises(ValueError, match="differs in boundaries"):
+        generators.lubachevsky_stillinger(dist.monodisperse(64), checkpoint=path,
+                                          **{**args, "boundaries": None})

@@ -189,3 +189,108 @@ def test_quench_refuses_a_cylinder():
     with pytest.raises(ValueError, match="soft_quench does not handle cylinder"):
         generators.soft_quench(dist.monodisperse(64), 3,
                                boundaries=Boundaries.cylinder(3, ["x", "y"]))
+
+
+# ------------------------------------------------------------------ Lubachevsky–Stillinger
+
+#: Reduced pressure of the walled LS runs, and the band of their densities (N = 128, a fast
+#: growth rate: below the periodic LS values, 0.84 for these discs and 0.64 for spheres).
+LS_PRESSURE = 1e5
+LS_PHI = {2: (0.76, 0.86), 3: (0.54, 0.65)}
+
+
+def test_wall_event_meets_the_growing_sphere_and_reflects_with_the_growth():
+    """A sphere of radius 1/2 growing at s γ/2 = 0.1, one radius from the wall at 0 and
+    moving towards it at speed 1: it touches the wall when x(τ) = σ(τ)/2, and leaves with
+    the normal speed 2w − u = 0.2 + 1, as if off a mirror partner growing with it."""
+    from generators.edmd import _wall_collision, _wall_event
+
+    x = np.array([[1.0, 2.0]])
+    v = np.array([[-1.0, 0.3]])
+    s, box, rate = np.array([1.0]), np.array([4.0, 4.0]), 0.2
+    tau, wall = _wall_event(0, x, v, s, box, np.array([False, True]), 1.0, rate)
+    assert wall == 0
+    assert x[0, 0] + v[0, 0] * tau == pytest.approx(0.5 * s[0] * (1.0 + rate * tau), rel=1e-14)
+    scale = 1.0 + rate * tau
+    virial = _wall_collision(0, wall, v, s, scale, rate)
+    assert v[0, 0] == pytest.approx(1.2, rel=1e-14) and v[0, 1] == 0.3
+    assert virial == pytest.approx(0.5 * scale * 2.2, rel=1e-14)
+    # the same sphere moving away from the wall and slower than its growth meets the far wall
+    v = np.array([[0.05, 0.0]])
+    tau, wall = _wall_event(0, x, v, s, box, np.array([False, True]), 1.0, rate)
+    assert wall == 0 and tau == pytest.approx(0.5 / (0.1 - 0.05))
+    assert _wall_event(0, x, v, s, box, np.array([True, True]), 1.0, rate)[0] == np.inf
+
+
+def test_elastic_walls_conserve_the_kinetic_energy():
+    """At zero growth and without velocity rescaling, spheres bouncing between walls (in x
+    and y) and off each other keep their kinetic energy, and stay inside."""
+    from generators.edmd import run_window
+
+    start = generators.poisson(np.ones(40), 3, phi=0.05, seed=4,
+                               boundaries=Boundaries.walls(3, ["x", "y"]))
+    x = start.positions.copy()
+    v = np.random.default_rng(4).standard_normal(x.shape)
+    energy = np.sum(v ** 2)
+    periodic = start.periodic.astype(bool)
+    _, _, virial, _, collisions, _ = run_window(x, v, np.ones(40), start.box, 1.0, 0.0, 1.0,
+                                                4000, 10 ** 9, 0.1, np.inf, periodic)
+    assert collisions == 4000 and virial > 0
+    assert np.sum(v ** 2) == pytest.approx(energy, rel=1e-12)
+    Boundaries.walls(3, ["x", "y"]).check(x, np.ones(40), start.box)
+
+
+@pytest.fixture(scope="module")
+def ls_runs():
+    return {name: generators.lubachevsky_stillinger(sizes, d, seed=1,
+                                                    target_pressure=LS_PRESSURE,
+                                                    boundaries=Boundaries.walls(d, axes))
+            for name, (d, sizes, axes) in CASES.items()}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_ls_between_walls_reaches_its_pressure_inside_and_apart(name, ls_runs):
+    d, sizes, axes = CASES[name]
+    walls = Boundaries.walls(d, axes)
+    result = ls_runs[name]
+    assert result.reduced_pressure >= LS_PRESSURE
+    assert_inside_and_apart(result.packing, walls)
+    np.testing.assert_allclose(result.packing.diameters, sizes, rtol=1e-14)
+    low, high = LS_PHI[d]
+    assert low < result.packing.phi < high
+    # near jamming the spheres press on every wall: some centres within 1e-3 σ of contact
+    radius = result.packing.diameters / 2
+    for axis in walls.wall_axes:
+        x = result.packing.positions[:, axis]
+        assert np.any(x - radius < 1e-3 * radius)
+        assert np.any(result.packing.box[axis] - x - radius < 1e-3 * radius)
+
+
+def test_ls_between_walls_is_certified_by_jam(ls_runs):
+    result = calippso.jam(ls_runs["d2_xy"].packing)
+    assert result.isostatic
+    assert result.n_wall_contacts > 0
+
+
+def test_ls_continues_a_walled_start_and_keeps_its_walls():
+    """A walled start (random sequential addition-like Poisson points, shrunk to no
+    overlap) is compressed in its own container; boundaries= contradicting it is refused."""
+    walls = Boundaries.walls(2, ["y"])
+    start = generators.poisson(dist.bidisperse(64, 1.4), 2, phi=0.2, seed=3, boundaries=walls)
+    result = generators.lubachevsky_stillinger(start=start, target_pressure=1e3, seed=2)
+    assert result.reduced_pressure >= 1e3
+    assert_inside_and_apart(result.packing, walls)
+    np.testing.assert_array_equal(result.packing.box, start.box)
+    with pytest.raises(ValueError, match="contradict the start's"):
+        generators.lubachevsky_stillinger(start=start, boundaries=Boundaries.walls(2, ["x"]))
+
+
+def test_ls_refuses_a_cylinder_and_mls_a_walled_start():
+    with pytest.raises(ValueError, match="lubachevsky_stillinger does not handle cylinder"):
+        generators.lubachevsky_stillinger(dist.monodisperse(64), 3,
+                                          boundaries=Boundaries.cylinder(3, ["x", "y"]))
+    start = generators.poisson(np.ones(64), 3, phi=0.2, seed=1,
+                               boundaries=Boundaries.walls(3, ["x"]))
+    with pytest.raises(ValueError, match="closest_jamming makes periodic packings only, got "
+                                         "walls in x"):
+        generators.closest_jamming(start=start)
