@@ -7,10 +7,11 @@ import time
 import numpy as np
 from numba import njit
 
+from calippso.boundaries import PERIODIC, WALLS, Boundaries
 from calippso.packing import Packing
 
-from ._checks import (check_diameters, check_dimension, check_phi, check_positive,
-                      phi_estimate, remove_roundoff_overlap)
+from ._checks import (check_boundaries, check_diameters, check_dimension, check_phi,
+                      check_positive, phi_estimate, remove_roundoff_overlap)
 from ._progress import Progress
 from .cells import verlet_lists
 from .periodic import image_component, inverse_sides, wrap_into_box
@@ -18,6 +19,44 @@ from .initial import poisson
 from .result import GenerationResult, make_history
 
 __all__ = ["force_biased"]
+
+#: The boundary kinds `force_biased` handles.
+BOUNDARY_KINDS = (PERIODIC, WALLS)
+
+
+@njit(cache=True)
+def _wall_pushes(x, s, box, periodic, outer, force, inner):
+    """Wall terms of an FB step: a flat wall acts on sphere i as its mirror image, a partner
+    of the same diameter at distance 2δ (δ the centre's distance to the wall). Adds the
+    Bezrukov push σ_i² (1 − (2δ)²/σ_i²) along the wall's inward normal to `force` when the
+    sphere overlaps the wall at its nominal size σ_i = s_i · outer, and returns `inner`
+    lowered to 2δ/s_i where that is smaller (the scale at which the sphere touches the wall).
+    """
+    n, d = x.shape
+    for i in range(n):
+        for mu in range(d):
+            if periodic[mu]:
+                continue
+            for side in range(2):          # the wall at 0 (normal +e_μ), then at L_μ
+                distance = x[i, mu] if side == 0 else box[mu] - x[i, mu]
+                mirror = 2.0 * distance
+                inner = min(inner, mirror / s[i])
+                contact = s[i] * outer
+                if mirror < contact:
+                    push = contact * contact - mirror * mirror
+                    force[i, mu] += push if side == 0 else -push
+    return inner
+
+
+@njit(cache=True)
+def _keep_between_walls(x, box, periodic):
+    """Hold every centre between the wall planes 0 and L_μ along the walled axes (an FB move
+    can carry a squeezed sphere past its wall; the wall's push brings it back)."""
+    n, d = x.shape
+    for i in range(n):
+        for mu in range(d):
+            if not periodic[mu]:
+                x[i, mu] = min(max(x[i, mu], 0.0), box[mu])
 
 
 @njit(cache=True)
@@ -33,6 +72,10 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin,
       3. outer ← outer − 0.5^j · contraction, j = ceil(−log10(φ_outer − φ_inner)), with
          φ_outer − φ_inner = φ_outer (1 − (inner/outer)^d) and φ_outer/outer^d =
          `phi_unit` (the packing fraction at scale 1).
+
+    Along the axes that are not `periodic` flat walls at 0 and L_μ push the spheres back
+    inside (`_wall_pushes`) and set the inner scale as a partner would; there is no minimum
+    image or wrap along them.
 
     Returns
     -------
@@ -51,6 +94,7 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin,
     r = np.empty(d)
     inv = inverse_sides(box, periodic)
     inner = 0.0
+    walled = not periodic.all()
     for step in range(n_steps + 1):
         inner = np.inf
         force[:, :] = 0.0
@@ -74,6 +118,8 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin,
                     for mu in range(d):
                         force[i, mu] += push * r[mu]
                         force[j, mu] -= push * r[mu]
+        if walled:
+            inner = _wall_pushes(x, s, box, periodic, outer, force, inner)
         if inner >= outer:
             return outer, inner, step, True
         if step == n_steps:
@@ -87,6 +133,8 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin,
                 dx = x[i, mu] - xb[i, mu]
                 disp2 += dx * dx
             moved = max(moved, disp2)
+        if walled:
+            _keep_between_walls(x, box, periodic)
         phi_outer = phi_unit * outer**d
         gap = phi_outer * (1.0 - (inner / outer) ** d)
         j_exp = np.ceil(-np.log10(gap)) if gap > 0 else 0.0
@@ -101,7 +149,7 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin,
 def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
                  contraction_rate: float = 1e-3, seed: int = 0, step_size: float = 0.25,
                  max_steps: int = 1_000_000, progress: bool = False,
-                 skin: float = 0.5) -> GenerationResult:
+                 skin: float = 0.5, boundaries: Boundaries | None = None) -> GenerationResult:
     """Force-biased packing generation (Mościński–Bargiel / Jodrey–Tory, Bezrukov forces).
 
     Spheres start at uniform random centres with their nominal diameters at packing fraction
@@ -136,18 +184,26 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
         Show a tqdm bar (−log10(φ_nominal − φ_inner)); quiet by default.
     skin : float
         Verlet skin in mean nominal diameters.
+    boundaries : calippso.Boundaries, optional
+        The container: periodic (None, the default) or flat hard walls at 0 and L along some
+        axes (`Boundaries.walls`; a cylinder is refused). A sphere overlapping a wall at its
+        nominal size is pushed back inside as by its mirror image (Bezrukov push of a
+        partner at distance 2δ), and the wall bounds the inner size as a partner would: the
+        result lies inside the container. No minimum image and no wrap along walled axes.
 
     Returns
     -------
     GenerationResult
         `reduced_pressure` is nan (FB has no dynamics); `steps` counts FB steps; history
         holds (step, φ_inner, nan, nominal shrink of the step / σ_nominal,0) every 50 steps;
-        `extra`: ``phi_nominal_final``, ``overlap_correction``.
+        `extra`: ``phi_nominal_final``, ``overlap_correction``. With walls the packing
+        carries the boundaries.
 
     Raises
     ------
     ValueError
-        On non-positive diameters, d < 2, phi_nominal outside (0, 1) or a box too small.
+        On non-positive diameters, d < 2, phi_nominal outside (0, 1), a box too small or a
+        cylinder.
     """
     wall = time.perf_counter()
     diameters = check_diameters(diameters)
@@ -156,7 +212,8 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
     phi_nominal = check_phi(phi_nominal, "phi_nominal")
     tau = check_positive(contraction_rate, "contraction_rate")
     step_size = check_positive(step_size, "step_size")
-    start = poisson(diameters, d, phi=phi_nominal, seed=seed)
+    boundaries = check_boundaries(boundaries, d, "force_biased", BOUNDARY_KINDS)
+    start = poisson(diameters, d, phi=phi_nominal, seed=seed, boundaries=boundaries)
     mean = float(diameters.mean())
     # Units of the mean nominal diameter: nominal diameters s (mean 1) at scale `outer`.
     x = start.positions / mean
@@ -169,7 +226,7 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
         while not finished and steps < max_steps:
             outer, inner, done, finished = _fb_steps(
                 x, s, box, outer, phi_nominal, step_size, tau, min(50, max_steps - steps), skin,
-                start.periodic)
+                boundaries.periodic)
             steps += done
             phi_inner = phi_nominal * inner**d
             gap = max(phi_nominal * outer**d - phi_inner, 0.0)
@@ -183,8 +240,10 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
     final = inner
     # Back to the caller's diameters: lengths × mean / final.
     factor = mean / final
-    sizes, correction = remove_roundoff_overlap(x * factor, s * mean, box * factor)
-    packing = Packing(x * factor, sizes, box * factor).wrapped()
+    sizes, correction = remove_roundoff_overlap(
+        x * factor, s * mean, box * factor,
+        None if boundaries.is_periodic else boundaries.periodic)
+    packing = Packing(x * factor, sizes, box * factor, boundaries).wrapped()
     status = (f"nominal and inner diameters met after {steps} steps" if finished else
               f"stopped at max_steps = {max_steps} before the nominal and inner sizes met")
     return GenerationResult(

@@ -294,3 +294,36 @@ def test_ls_refuses_a_cylinder_and_mls_a_walled_start():
     with pytest.raises(ValueError, match="closest_jamming makes periodic packings only, got "
                                          "walls in x"):
         generators.closest_jamming(start=start)
+
+
+# ------------------------------------------------------------------ force-biased
+
+#: Band of the FB densities between walls (N = 128, default contraction): a loose start,
+#: below the periodic FB values.
+FB_PHI = {2: (0.72, 0.85), 3: (0.48, 0.63)}
+
+
+def test_fb_wall_push_is_the_push_of_the_mirror_image():
+    """A sphere of nominal diameter 1 at δ = 0.3 from the wall at 0 (and far from the wall at
+    L) is pushed along +x by σ² (1 − (2δ)²/σ²), the Bezrukov push of its mirror partner at
+    2δ, and the inner scale becomes 2δ/s, the scale at which it would touch the wall."""
+    from generators.fb import _wall_pushes
+
+    x = np.array([[0.3, 1.0], [1.5, 1.0]])
+    force = np.zeros_like(x)
+    inner = _wall_pushes(x, np.ones(2), np.array([3.0, 3.0]), np.array([False, True]), 1.0,
+                         force, np.inf)
+    assert force[0, 0] == pytest.approx(1.0 - 0.6 ** 2, rel=1e-14)
+    assert force[0, 1] == 0.0 and np.all(force[1] == 0.0)
+    assert inner == pytest.approx(0.6, rel=1e-14)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_fb_between_walls_is_inside_and_apart(name):
+    d, sizes, axes = CASES[name]
+    walls = Boundaries.walls(d, axes)
+    result = generators.force_biased(sizes, d, seed=1, boundaries=walls)
+    assert result.status.startswith("nominal and inner diameters met")
+    assert_inside_and_apart(result.packing, walls)
+    low, high = FB_PHI[d]
+    assert low < result.packing.phi < high
