@@ -48,6 +48,8 @@ class GenerationResult:
         overlap network before the final shrink, rattlers removed recursively): pairs
         (i, j) with i < j, sorted lexicographically, in the packing's particle order. A hint
         for `calippso.jam(packing, network=result.contacts)`; None for the other generators.
+        Particle pairs only: between walls, the wall contacts are not among them
+        (`soft_quench` puts them in ``extra["wall_contacts"]``).
     """
 
     packing: Any
