@@ -18,13 +18,8 @@ from ..result import JammingResult
 from ._inputs import as_results
 from .sample import PooledSample
 
-__all__ = ["has_walls", "normalized_wall_forces", "pooled_wall_forces", "wall_force_summary",
+__all__ = ["normalized_wall_forces", "pooled_wall_forces", "wall_force_summary",
            "wall_load_rows"]
-
-
-def has_walls(results: JammingResult | Iterable[JammingResult]) -> bool:
-    """Whether any of the packings has flat walls or a cylinder."""
-    return any(not r.packing.boundaries.is_periodic for r in as_results(results))
 
 
 def normalized_wall_forces(result: JammingResult) -> np.ndarray:
