@@ -70,7 +70,7 @@ def test_report_keeps_wall_forces_out_of_the_particle_forces(walled, tmp_path, c
     summary = json.loads((tmp_path / "report" / "summary.json").read_text())
     assert summary["localized_forces"] + summary["extended_forces"] == result.forces.size
     assert summary["walls"]["wall_forces"]["count"] == result.n_wall_contacts
-    assert summary["walls"]["loads"][0]["axis"] == "x"
+    assert [row["wall"] for row in summary["walls"]["loads"]] == ["x = 0", "x = L"]
     layering = summary["walls"]["layering"]
     assert layering["phi"][0] < 0.5 * result.phi              # next to the wall: sparse
     assert (tmp_path / "report" / "walls.png").is_file()

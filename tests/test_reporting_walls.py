@@ -119,10 +119,12 @@ def test_the_analysis_keeps_wall_forces_apart(slab):
     assert len(analysis.wall_forces) == slab.n_wall_contacts
     assert np.allclose(analysis.wall_forces.values,
                        np.sort(slab.wall_forces) / slab.forces.mean(), rtol=1e-14)
-    (row,) = analysis.wall_loads
-    assert row["axis"] == "x" and row["contacts"] == slab.n_wall_contacts
-    assert row["load_0"] == pytest.approx(-row["load_L"], rel=1e-10)
-    assert row["pressure_0"] == pytest.approx(row["pressure_L"], rel=1e-10)
+    low, high = analysis.wall_loads
+    assert (low["wall"], high["wall"]) == ("x = 0", "x = L")
+    assert low["contacts"] + high["contacts"] == slab.n_wall_contacts
+    assert low["contacts"] > 0 and high["contacts"] > 0
+    assert low["load"] == pytest.approx(-high["load"], rel=1e-10) and high["load"] > 0
+    assert low["pressure"] == pytest.approx(high["pressure"], rel=1e-10)
     profile = pooled_density_profile([slab])
     assert np.allclose(profile.phi, analysis.layering.phi)
 
@@ -134,7 +136,8 @@ def test_the_report_has_a_walls_section_and_figure(slab, tmp_path):
     walls = summary["walls"]
     assert walls["wall_forces"]["count"] == slab.n_wall_contacts
     assert summary["localized_forces"] + summary["extended_forces"] == slab.forces.size
-    assert walls["loads"][0]["load_L"] == pytest.approx(slab.wall_loads[0, 1])
+    assert walls["loads"][1]["load"] == pytest.approx(slab.wall_loads[0, 1])
+    assert "| 0 | x = L |" in page.read_text()
     assert summary["figures"]["walls"] == "walls.png" and (tmp_path / "walls.png").stat().st_size
     text = page.read_text()
     assert "## Walls" in text and "![walls](walls.png)" in text

@@ -49,7 +49,8 @@ class Analysis:
         (`calippso.analysis.wall_forces`); None when no packing has walls. `forces` never
         holds them.
     wall_loads : list of dict
-        Per packing and walled axis: wall contacts, loads and pressures on its two walls.
+        Per packing and wall: its contacts, load and pressure
+        (`calippso.analysis.wall_forces.wall_load_rows`).
     layering : DensityProfile or None
         Packing fraction against the distance from the nearest wall, pooled
         (`calippso.analysis.layering`); None when no packing has walls.

@@ -52,19 +52,28 @@ def wall_force_summary(sample: PooledSample) -> dict:
 
 
 def wall_load_rows(results: JammingResult | Iterable[JammingResult]) -> list[dict]:
-    """One row per packing and walled axis: its wall contacts, the loads on the walls at 0
-    and at L (`JammingResult.wall_loads`, units of the forces) and their pressures
-    (`JammingResult.wall_pressures`, force per length^(d−1))."""
+    """One row per packing and wall: its name ("x = 0", "x = L", "cylinder"), its contacts,
+    the load on it and its pressure.
+
+    For a flat wall the load is the component along its axis of the particles' total force
+    on it (`JammingResult.wall_loads`: ≤ 0 at 0, ≥ 0 at L, units of the forces); for a
+    cylinder, the total outward force (`JammingResult.cylinder_load`). Pressures are force
+    per length^(d−1) (`wall_pressures`, `cylinder_pressure`).
+    """
     rows = []
     for k, result in enumerate(as_results(results)):
+        boundaries = result.packing.boundaries
         walls = result.wall_contacts[:, 1]
-        for axis in result.packing.boundaries.wall_axes:
-            rows.append({
-                "packing": k, "axis": axis_name(axis),
-                "contacts": int(np.count_nonzero(walls // 2 == axis)),
-                "load_0": float(result.wall_loads[axis, 0]),
-                "load_L": float(result.wall_loads[axis, 1]),
-                "pressure_0": float(result.wall_pressures[axis, 0]),
-                "pressure_L": float(result.wall_pressures[axis, 1]),
-            })
+        for axis in boundaries.wall_axes:
+            for side, label in enumerate(("0", "L")):
+                rows.append({"packing": k, "wall": f"{axis_name(axis)} = {label}",
+                             "contacts": int(np.count_nonzero(walls == 2 * axis + side)),
+                             "load": float(result.wall_loads[axis, side]),
+                             "pressure": float(result.wall_pressures[axis, side])})
+        if boundaries.cylinder_axes:
+            flat = np.count_nonzero(walls < 2 * result.d)
+            rows.append({"packing": k, "wall": "cylinder",
+                         "contacts": int(walls.size - flat),
+                         "load": float(result.cylinder_load),
+                         "pressure": float(result.cylinder_pressure)})
     return rows

@@ -116,11 +116,9 @@ def _walls_section(walls: dict, figure: Path) -> list[str]:
              f"| all walls | {forces['count']} | {_fmt(forces['mean'])} | "
              f"{_fmt(forces['median'])} | {_fmt(forces['min'])} | {_fmt(forces['max'])} |"]
     if walls["loads"]:
-        lines += ["", "| packing | axis | wall contacts | load at 0 | load at L | pressure at 0 "
-                  "| pressure at L |", "|---|---|---|---|---|---|---|"]
-        lines += [f"| {row['packing']} | {row['axis']} | {row['contacts']} | "
-                  f"{_fmt(row['load_0'])} | {_fmt(row['load_L'])} | {_fmt(row['pressure_0'])} "
-                  f"| {_fmt(row['pressure_L'])} |" for row in walls["loads"]]
+        lines += ["", "| packing | wall | contacts | load | pressure |", "|---|---|---|---|---|"]
+        lines += [f"| {row['packing']} | {row['wall']} | {row['contacts']} | {_fmt(row['load'])} "
+                  f"| {_fmt(row['pressure'])} |" for row in walls["loads"]]
     lines += ["", "Layering: the local packing fraction against the distance from the nearest "
               "wall (volume fraction of the spheres in shells parallel to the wall; it tends to "
               "the bulk value far from the wall).", "", f"![walls]({figure.name})"]
