@@ -49,7 +49,7 @@ def force_balance(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
                   walls: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> float:
     """max over stable particles of |Σ_j f_ij n_ij| / mean force (0 when there is no force).
 
-    `walls`, when given, is (particle, wall, forces) of the wall contacts
+    `walls`, when given, is (particle, inward normals (K, d), forces) of the wall contacts
     (`calippso.walls`): their forces enter the net force and the mean.
     """
     all_forces = forces if walls is None else np.concatenate([forces, walls[2]])
@@ -62,7 +62,7 @@ def force_balance(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
     if walls is not None:
         from .walls import wall_net_forces
 
-        total += wall_net_forces(n, normals.shape[1], *walls)
+        total += wall_net_forces(n, *walls)
     total = total[stable]
     return float(np.sqrt(np.einsum("nd,nd->n", total, total)).max() / mean)
 

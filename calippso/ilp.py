@@ -40,7 +40,7 @@ from .network import (ContactNetwork, certify_network, network_balance, network_
                       walls_near_contact)
 from .network_first import SettledNetwork, settle_candidate
 from .network_guess import Candidate, candidate_networks, check_network_hint
-from .newton import NEWTON_FAILED, Refinement, refine_isostatic
+from .newton import NEWTON_FAILED, Refinement, pinned_coordinates, refine_isostatic
 from .packing import Packing, wrap
 from .pivots import PivotPath, describe_path, pivot_to_jamming
 from .rattlers import remove_rattlers
@@ -49,7 +49,7 @@ from .settings import JamSettings
 from .solvers import Basis
 from .solvers.policy import LPAttempt, LPFailed, SolverPolicy, next_warm_start
 from .step import Step, analyse, at_bound
-from .walls import WallRows, out_of_layer_moves, wall_rows_of
+from .walls import WallRows, out_of_layer_moves, wall_ids, wall_rows_of
 
 __all__ = ["jam", "initial_step_bound", "next_step_bound"]
 
@@ -241,15 +241,13 @@ class _Jammer:
                  hint: np.ndarray | None = None,
                  on_lp: Callable[[LPAttempt], None] | None = None):
         self.boundaries = packing.boundaries
-        if self.boundaries.cylinder_axes:
-            raise ValueError(f"jam handles periodic boxes and flat walls; a cylinder "
-                             f"({self.boundaries.describe()}) cannot be jammed yet")
-        self.wall_axes = self.boundaries.wall_axes
+        self.walled = not self.boundaries.is_periodic
+        self.wall_axes = self.boundaries.wall_axes   # flat walls (layers form along them)
         # None in a periodic box: the geometry's fast path
         self.periodic = None if self.boundaries.is_periodic else self.boundaries.periodic
         self.history = History(packing.d, time.perf_counter() if start is None else start,
                                verbose=settings.verbose, zero_modes=self.boundaries.zero_modes)
-        if self.wall_axes:
+        if self.walled:
             settings, hint = self._without_network_stages(settings, hint)
         self.settings = settings
         self.hint = hint
@@ -260,10 +258,12 @@ class _Jammer:
         self.box = packing.box / self.scale
         self.positions = wrap(packing.positions / self.scale, self.box, self.periodic)
         self.diameters = packing.diameters / self.scale
-        # the pin removes the translations along the periodic axes only: a wall holds the rest
+        # the pin removes the container's zero modes: the translations along the periodic
+        # axes (a wall holds the rest), and a cylinder's rotation
         self.fixed = np.zeros((self.n, self.d), dtype=bool)
         if settings.pin:
-            self.fixed[0] = self.boundaries.periodic
+            self.fixed = pinned_coordinates(self.positions, self.box, np.ones(self.n, bool),
+                                            self.boundaries)
         self.forced_walls = NO_PAIRS      # (particle, wall) rows forced into every LP
         self.wall_kicks = 0               # converged LPs left hypostatic between walls
         self.failed_networks: set[str] = set()
@@ -303,7 +303,7 @@ class _Jammer:
         history = self.history.to_array()
         state = {"positions": self.positions, "diameters": self.diameters, "step": self.step,
                  "forced": self.forced,
-                 **({"forced_walls": self.forced_walls} if self.wall_axes else {}),
+                 **({"forced_walls": self.forced_walls} if self.walled else {}),
                  "failed_networks": np.array(sorted(self.failed_networks), dtype=str),
                  "notes": np.array(self.history.notes, dtype=str),
                  **{f"history_{name}": history[name] for name in HISTORY_COLUMNS}}
@@ -346,16 +346,15 @@ class _Jammer:
                forced: np.ndarray) -> WallRows:
         """The LP's wall rows: the safe selection at this bound, the forced ones, and only
         those of `stable` particles when given."""
-        walls = select_walls(search, step, self.wall_axes)
+        walls = select_walls(search, step, self.boundaries)
         if forced.shape[0]:
-            n_walls = 2 * self.d
+            n_walls = wall_ids(self.d)
             extra = forced[~np.isin(forced[:, 0] * n_walls + forced[:, 1],
                                     walls.keys(n_walls))]
             if extra.shape[0]:
                 more = wall_rows_of(search.positions, search.diameters, search.box,
-                                    extra[:, 0], extra[:, 1])
-                walls = WallRows(*(np.concatenate([getattr(walls, name), getattr(more, name)])
-                                   for name in ("particle", "wall", "distances", "sigma")))
+                                    extra[:, 0], extra[:, 1], self.boundaries.cylinder_axes)
+                walls = WallRows.concatenate([walls, more], self.d)
         if stable is not None:
             walls = walls.subset(stable[walls.particle])
         return walls
@@ -429,7 +428,7 @@ class _Jammer:
         reason = StopReason.MAX_ITERS
         verifying = False
         while self.history.lps_solved < settings.max_iters:
-            bound = largest_safe_step(self.search, self.step)
+            bound = largest_safe_step(self.search, self.step, self.boundaries)
             if bound < settings.min_step * VANISHING_STEP_FRACTION:
                 raise self._fail("box too small: even a vanishing step would need pairs "
                                  "beyond half the box side")
@@ -455,7 +454,7 @@ class _Jammer:
                 continue
             self.positions, self.diameters, self.search = positions, diameters, search
             record = self._record(taken, min(close.smallest_gap(), walls_near_contact(
-                search, self.wall_axes).smallest_gap()))
+                search, self.boundaries).smallest_gap()))
             network = taken.network()
             converged = (record.sqrt_gamma_minus_1 < settings.tol_gamma
                          and taken.max_displacement < settings.tol_s
@@ -538,10 +537,10 @@ class _Jammer:
         """Whether a particle crossed a wall whose row was left out of the LP (round-off at
         the edge of the safe selection); such rows are then forced into every LP, with a
         note, and the LP is solved again."""
-        if not self.wall_axes:
+        if not self.walled:
             return False
-        near = walls_near_contact(search, self.wall_axes)
-        n_walls = 2 * self.d
+        near = walls_near_contact(search, self.boundaries)
+        n_walls = wall_ids(self.d)
         outside = (near.gaps < 0) & ~np.isin(near.keys(n_walls), taken.lp.walls.keys(n_walls))
         if not outside.any():
             return False
@@ -669,12 +668,12 @@ class _Jammer:
             The certified network (None if refused) and whether pivots reached it.
         """
         if (self.settings.pivots != "always"
-                or network_key(network.i, network.j, self.n) in self.failed_networks):
+                or network.key() in self.failed_networks):
             return self._newton(network), False
         refinement = refine_isostatic(self.positions, self.diameters, self.box, network.i,
                                       network.j, ~network.rattlers)
         if refinement is None:   # refused as the Newton stage would refuse it, solved once
-            self.failed_networks.add(network_key(network.i, network.j, self.n))
+            self.failed_networks.add(network.key())
             self.newton_failure = NEWTON_FAILED
             return None, False
         certified = self._newton(network, refined=refinement)
@@ -703,7 +702,7 @@ class _Jammer:
         touching pair refuses it (`calippso.network.certify_network`). On success a history
         record (stage "newton") and a note are added; on failure `newton_failure` says why.
         """
-        key = network_key(network.i, network.j, self.n)
+        key = network.key()
         if key in self.failed_networks and not retry:
             self.newton_failure = "tried before"
             return None
@@ -741,7 +740,7 @@ class _Jammer:
         forces of mean 1, the status."""
         settings = self.settings
         converged = reason.jammed
-        balance = network_balance(self.search, network)
+        balance = network_balance(self.search, network, self.boundaries)
         if balance > settings.balance_tolerance and network.from_lp and converged:
             refined = self._newton(network, retry=True) if settings.newton else None
             if refined is not None:
@@ -752,10 +751,11 @@ class _Jammer:
         if converged:
             network, balance, note = touching_network(
                 self.search, network, balance, self.d, settings.balance_tolerance,
-                self.wall_axes, self.boundaries.zero_modes)
+                self.boundaries)
             self._note(note)
         if balance > settings.balance_tolerance and network.n_contacts:
-            network, balance, note = polished_forces(self.search, network, balance)
+            network, balance, note = polished_forces(self.search, network, balance,
+                                                     self.boundaries)
             self._note(note)
         contacts = np.column_stack([network.i, network.j]).astype(np.int64)
         order = np.lexsort((contacts[:, 1], contacts[:, 0]))
@@ -765,7 +765,7 @@ class _Jammer:
         wall_forces = network.wall_forces[wall_order]
         every_force = np.concatenate([forces, wall_forces])
         mean_force = every_force.mean() if every_force.size else 1.0
-        shrink = remove_roundoff_overlaps(self.search, self.wall_axes)
+        shrink = remove_roundoff_overlaps(self.search, self.boundaries)
         if shrink is not None:
             self.diameters = self.diameters * shrink.factor
             self.search = shrink.search
@@ -773,7 +773,7 @@ class _Jammer:
             self.history.correct_min_gap(shrink.min_gap)
         gap = isostaticity_gap(network.n_contacts, network.n_stable, self.d,
                                self.boundaries.zero_modes)
-        if self.wall_axes and converged and gap < 0:
+        if self.walled and converged and gap < 0:
             self.history.note(f"not a certified jamming point: the LPs converged between walls "
                               f"with a hypostatic network (gap {gap:+d}), a floppy mode that "
                               f"moving particles out of their layers did not remove")
@@ -794,8 +794,7 @@ class _Jammer:
         particle fixed, bound `CLEANUP_STEP`: its network and force balance."""
         stable = ~network.rattlers
         fixed = np.repeat(network.rattlers[:, None], self.d, axis=1)
-        if stable.any():
-            fixed[np.flatnonzero(stable)[0]] |= self.boundaries.periodic
+        fixed |= pinned_coordinates(self.positions, self.box, stable, self.boundaries)
         cleanup = self._solve(self.search, CLEANUP_STEP, fixed, stable=stable)
         self._record(cleanup, self.history.last.min_gap, stage="cleanup")
         if cleanup.max_displacement > 0.5 * CLEANUP_STEP:

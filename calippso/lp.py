@@ -15,9 +15,10 @@ Which rows are kept. Any pair p bounds the LP optimum: Γ σ_p² ≤ |r_p|² + 2
 |r_ij| − 2√d b > g σ_ij can then never come into contact during the step, in exact arithmetic.
 Only pairs within g σ_ij + 2√d b are kept; the loop still checks every pair after each update.
 
-Flat walls (`calippso.walls`) add one row per particle within g σ_i/2 + b of a wall, of the
-same form with the wall as a partner that does not move: the displacement towards a wall is
-one component, at most b.
+Container walls (`calippso.walls`) add one row per particle within g σ_i/2 + b of a flat
+wall (the displacement towards it is one component, at most b) or g σ_i/2 + √2 b of a
+cylinder, of the same form with the wall as a partner that does not move; a cylinder's row
+uses the distance δ − b²/ρ, which its curvature cannot undercut over the step.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .neighbors import NeighborSearch, Pairs
-from .walls import EMPTY_WALLS, WallRows, wall_rows_within
+from .walls import EMPTY_WALLS, WallRows, empty_walls, wall_rows_within
 
 __all__ = ["LinearProgram", "select_pairs", "select_walls", "build_lp"]
 
@@ -82,12 +83,14 @@ class LinearProgram:
 
     @property
     def gamma_coefficients(self) -> np.ndarray:
-        """σ_ij²/(2|r_ij|) for every row (σ_w²/(2δ) for a wall row): the (negated)
+        """σ_ij²/(2|r_ij|) for every row (σ_w²/(2δ') for a wall row,
+        `calippso.walls.WallRows.row_distances`): the (negated)
         coefficient of γ, shape (M + K,)."""
         coefficients = self.pairs.sigma**2 / (2.0 * self.pairs.distances)
         if not len(self.walls):
             return coefficients
-        return np.concatenate([coefficients, self.walls.sigma**2 / (2.0 * self.walls.distances)])
+        return np.concatenate([coefficients, self.walls.sigma**2
+                               / (2.0 * self.walls.row_distances(self.step_bound))])
 
 
 def growth_bound(search: NeighborSearch, step_bound: float) -> float:
@@ -120,10 +123,10 @@ def select_pairs(search: NeighborSearch, step_bound: float) -> Pairs:
     return pairs.subset(pairs.distances <= g * pairs.sigma + reach)
 
 
-def select_walls(search: NeighborSearch, step_bound: float,
-                 wall_axes: tuple[int, ...]) -> WallRows:
+def select_walls(search: NeighborSearch, step_bound: float, boundaries) -> WallRows:
     """Every particle–wall pair that could come into contact within a step bounded by
-    `step_bound`: δ ≤ g σ_i/2 + b, with g the bound on √Γ of `growth_bound`.
+    `step_bound`: δ ≤ g σ_i/2 + b (√2 b for a cylinder), with g the bound on √Γ of
+    `growth_bound`.
 
     Parameters
     ----------
@@ -131,21 +134,24 @@ def select_walls(search: NeighborSearch, step_bound: float,
         Current positions and diameters (mean diameter 1).
     step_bound : float
         Bound b on each displacement component.
-    wall_axes : tuple of int
-        Axes with flat walls.
+    boundaries : calippso.boundaries.Boundaries
+        The container.
     """
-    if not wall_axes:
-        return EMPTY_WALLS
-    return wall_rows_within(search.positions, search.diameters, search.box, wall_axes,
+    if boundaries.is_periodic:
+        return empty_walls(search.d)
+    return wall_rows_within(search.positions, search.diameters, search.box, boundaries,
                             step_bound, growth_bound(search, step_bound))
 
 
-def largest_safe_step(search: NeighborSearch, step_bound: float) -> float:
+def largest_safe_step(search: NeighborSearch, step_bound: float, boundaries=None) -> float:
     """The largest bound ≤ `step_bound` whose row selection stays below half the smallest
-    periodic box side.
+    periodic box side, and (in a cylinder) whose curvature margin b²/ρ leaves every
+    particle near the wall at least half its distance δ (`calippso.walls`).
 
     Returns 0.0 when even a vanishing step would need pairs beyond half the box.
     """
+    if boundaries is not None and boundaries.cylinder_axes:
+        step_bound = min(step_bound, _cylinder_step_limit(search, boundaries))
     half = search.half_period
     root_d = np.sqrt(search.d)
     for _ in range(60):
@@ -154,6 +160,17 @@ def largest_safe_step(search: NeighborSearch, step_bound: float) -> float:
             return step_bound
         step_bound *= 0.5
     return 0.0
+
+
+def _cylinder_step_limit(search: NeighborSearch, boundaries) -> float:
+    """The largest b with b²/ρ ≤ δ/2 for every particle within a diameter of the cylinder
+    (+inf when none is): its LP row then keeps a positive distance δ − b²/ρ."""
+    near = wall_rows_within(search.positions, search.diameters, search.box, boundaries,
+                            0.0, 2.0)
+    near = near.subset(near.curvature > 0)
+    if not len(near):
+        return float("inf")
+    return float(np.sqrt(0.5 * np.min(near.distances / near.curvature)))
 
 
 def build_lp(pairs: Pairs, n: int, d: int, step_bound: float, fixed: np.ndarray,
@@ -190,14 +207,15 @@ def build_lp(pairs: Pairs, n: int, d: int, step_bound: float, fixed: np.ndarray,
     values, rows, columns = values.ravel(), rows, columns.ravel()
     if len(walls):
         k = len(walls)
-        wall_rows = m + np.arange(k)
-        values = np.concatenate([values, walls.sign,
-                                 -walls.sigma**2 / (2.0 * walls.distances)])
-        rows = np.concatenate([rows, wall_rows, wall_rows])
-        columns = np.concatenate([columns, walls.particle * d + walls.axis,
+        distances = walls.row_distances(step_bound)
+        row, axis = np.nonzero(walls.normals)   # one entry per normal component
+        values = np.concatenate([values, walls.normals[row, axis],
+                                 -walls.sigma**2 / (2.0 * distances)])
+        rows = np.concatenate([rows, m + row, m + np.arange(k)])
+        columns = np.concatenate([columns, walls.particle[row] * d + axis,
                                   np.full(k, n * d)])
-        row_lower = np.concatenate([row_lower, -(walls.distances - walls.sigma) * (
-            walls.distances + walls.sigma) / (2.0 * walls.distances)])
+        row_lower = np.concatenate([row_lower, -(distances - walls.sigma) * (
+            distances + walls.sigma) / (2.0 * distances)])
     matrix = sp.csc_matrix((values, (rows, columns)), shape=(m + len(walls), n * d + 1))
     col_lower = np.full(n * d + 1, -step_bound)
     col_upper = np.full(n * d + 1, step_bound)

@@ -25,7 +25,8 @@ from .contacts import force_balance, isostaticity_gap, polish_forces, positive_s
 from .neighbors import NEAR_CONTACT_SLACK, NeighborSearch, Pairs, shrink_to_margin
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .rattlers import remove_rattlers, separate_rattlers
-from .walls import WallRows, wall_equilibrium_columns, wall_rows_of, wall_rows_within
+from .walls import (WallRows, empty_walls, wall_equilibrium_columns, wall_ids, wall_rows_of,
+                    wall_rows_within)
 
 __all__ = ["ContactNetwork", "Certified", "RoundoffShrink", "network_key", "network_balance",
            "overlaps_outside", "certify_network", "touching_network", "polished_forces",
@@ -98,18 +99,48 @@ class ContactNetwork:
         """Number of stable (non-rattler) particles."""
         return int(self.rattlers.size - self.rattlers.sum())
 
+    def key(self) -> str:
+        """A digest of the contacts, wall contacts included (`network_key`)."""
+        return network_key(self.i, self.j, self.rattlers.size, self.wall_particle, self.wall)
 
-def network_key(i: np.ndarray, j: np.ndarray, n: int) -> str:
-    """A digest of a contact network (its sorted pair keys i N + j, N particles)."""
-    return hashlib.sha256(np.sort(i * n + j).tobytes()).hexdigest()
+
+def network_key(i: np.ndarray, j: np.ndarray, n: int,
+                wall_particle: np.ndarray | None = None, wall: np.ndarray | None = None) -> str:
+    """A digest of a contact network: its sorted pair keys i N + j (N particles), and, in a
+    container, its wall contacts (particle, wall) sorted."""
+    digest = hashlib.sha256(np.sort(i * n + j).tobytes())
+    if wall_particle is not None and wall_particle.size:
+        order = np.lexsort((wall, wall_particle))
+        digest.update(np.column_stack([wall_particle[order], wall[order]]).astype(
+            np.int64).tobytes())
+    return digest.hexdigest()
 
 
-def network_balance(search: NeighborSearch, network: ContactNetwork) -> float:
-    """max over stable particles of |Σ_j f_ij n_ij| / mean force, at the geometry of `search`."""
+def network_balance(search: NeighborSearch, network: ContactNetwork,
+                    boundaries: Boundaries | None = None) -> float:
+    """max over stable particles of |Σ_j f_ij n_ij + Σ_w f_w e_w| / mean force, at the
+    geometry of `search` in the container `boundaries` (None: periodic)."""
     current = search.pairs_of(network.i, network.j)
     return force_balance(network.rattlers.size, current.i, current.j,
                          current.vectors / current.distances[:, None], network.forces,
-                         ~network.rattlers, network.walls)
+                         ~network.rattlers, _wall_part(search, network, boundaries))
+
+
+def _wall_part(search: NeighborSearch, network: ContactNetwork,
+               boundaries: Boundaries | None) -> tuple | None:
+    """(particle, inward normals, forces) of the network's wall contacts at the geometry of
+    `search` (`calippso.contacts.force_balance`), or None without any."""
+    if network.walls is None:
+        return None
+    walls = _wall_geometry(search, network, boundaries)
+    return walls.particle, walls.normals, network.wall_forces
+
+
+def _wall_geometry(search: NeighborSearch, network: ContactNetwork,
+                   boundaries: Boundaries | None) -> WallRows:
+    """The geometry of the network's wall contacts in the configuration of `search`."""
+    return wall_rows_of(search.positions, search.diameters, search.box, network.wall_particle,
+                        network.wall, () if boundaries is None else boundaries.cylinder_axes)
 
 
 def overlaps_outside(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -207,11 +238,10 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
     """
     n = positions.shape[0]
     periodic = None if boundaries is None or boundaries.is_periodic else boundaries.periodic
-    wall_axes = () if boundaries is None else boundaries.wall_axes
     if refined is None:
         refined = refine_isostatic(positions, diameters, box, network.i, network.j,
                                    ~network.rattlers, wall_particle=network.wall_particle,
-                                   wall=network.wall, periodic=periodic)
+                                   wall=network.wall, boundaries=boundaries)
     if refined is None:
         return None, NEWTON_FAILED
     order = np.sort(network.i * n + network.j)
@@ -225,8 +255,8 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
         if separated is not None:
             moved = separated
             search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order)
-    near_walls = walls_near_contact(search, wall_axes)
-    n_walls = 2 * positions.shape[1]
+    near_walls = walls_near_contact(search, boundaries)
+    n_walls = wall_ids(positions.shape[1])
     outside_walls = ~np.isin(near_walls.keys(n_walls),
                              network.wall_particle * n_walls + network.wall)
     crossing = int(np.count_nonzero(outside_walls
@@ -248,17 +278,17 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
     if touching:
         return None, f"{touching} other pair(s) touch (a hyperstatic packing)"
     current = search.pairs_of(network.i, network.j)
-    walls = wall_rows_of(search.positions, search.diameters, search.box, network.wall_particle,
-                         network.wall)
+    walls = _wall_geometry(search, network, boundaries)
     normalization = float(refined.forces @ (current.sigma**2 / current.distances)
                           + refined.wall_forces @ (walls.sigma**2 / walls.distances))
     certified = replace(network, forces=refined.forces, wall_forces=refined.wall_forces,
                         normalization=normalization, from_lp=False)
     return Certified(moved, refined.diameters, search, certified,
-                     network_balance(search, certified), close.smallest_gap(), refined), ""
+                     network_balance(search, certified, boundaries), close.smallest_gap(),
+                     refined), ""
 def touching_network(search: NeighborSearch, network: ContactNetwork, balance: float, d: int,
-                     balance_tolerance: float, wall_axes: tuple[int, ...] = (),
-                     zero_modes: int | None = None) -> tuple[ContactNetwork, float, str | None]:
+                     balance_tolerance: float, boundaries: Boundaries | None = None
+                     ) -> tuple[ContactNetwork, float, str | None]:
     """The touching pairs as the contact network, when the LP's duals missed contacts.
 
     At a degenerate jammed point (crystals, other hyperstatic packings) the LP has many
@@ -268,9 +298,9 @@ def touching_network(search: NeighborSearch, network: ContactNetwork, balance: f
     (h < `GEOMETRIC_CONTACT_GAP`) give a network with more stable particles (or as many,
     and more contacts), the touching network is used instead, with the positive
     self-stress near uniform forces that `positive_self_stress` finds, if there is one and
-    it balances to `balance_tolerance`. Otherwise the LP network is kept. With flat walls
-    along `wall_axes`, the particles touching a wall count too (`calippso.walls`), and
-    `zero_modes` (default d) enters the isostatic count.
+    it balances to `balance_tolerance`. Otherwise the LP network is kept. In a container
+    (`boundaries`, default periodic), the particles touching a wall count too
+    (`calippso.walls`), and its zero modes enter the isostatic count.
 
     Returns
     -------
@@ -278,15 +308,16 @@ def touching_network(search: NeighborSearch, network: ContactNetwork, balance: f
         The network, its force balance, and the note when the touching network was taken.
     """
     n = network.rattlers.size
+    zero_modes = None if boundaries is None else boundaries.zero_modes
     if network.n_stable > 0 and isostaticity_gap(network.n_contacts, network.n_stable, d,
                                                  zero_modes) >= 0:
         return network, balance, None
     close = search.pairs_near_contact()
     touching = close.subset(close.gaps < GEOMETRIC_CONTACT_GAP)
-    walls = walls_near_contact(search, wall_axes)
+    walls = walls_near_contact(search, boundaries)
     walls = walls.subset(walls.gaps < GEOMETRIC_CONTACT_GAP)
     rattlers, kept = remove_rattlers(n, d, touching.i, touching.j,
-                                     walls.particle if wall_axes else None)
+                                     walls.particle if len(walls) else None)
     touching = touching.subset(kept)
     walls = walls.subset(~rattlers[walls.particle])
     n_stable_touching = int(np.count_nonzero(~rattlers))
@@ -297,13 +328,13 @@ def touching_network(search: NeighborSearch, network: ContactNetwork, balance: f
     weights = touching.sigma**2 / touching.distances
     extra = None
     if len(walls):
-        extra = wall_equilibrium_columns(n, d, walls.particle, walls.wall)
+        extra = wall_equilibrium_columns(n, walls.particle, walls.normals)
         weights = np.concatenate([weights, walls.sigma**2 / walls.distances])
     forces = positive_self_stress(n, touching.i, touching.j, normals, weights, extra)
     if forces is None:
         return network, balance, None
     m = len(touching)
-    wall_part = (walls.particle, walls.wall, forces[m:]) if len(walls) else None
+    wall_part = (walls.particle, walls.normals, forces[m:]) if len(walls) else None
     new_balance = force_balance(n, touching.i, touching.j, normals, forces[:m], ~rattlers,
                                 wall_part)
     if new_balance > balance_tolerance:
@@ -316,8 +347,9 @@ def touching_network(search: NeighborSearch, network: ContactNetwork, balance: f
                            wall_forces=forces[m:]), new_balance, note)
 
 
-def polished_forces(search: NeighborSearch, network: ContactNetwork,
-                    balance: float) -> tuple[ContactNetwork, float, str | None]:
+def polished_forces(search: NeighborSearch, network: ContactNetwork, balance: float,
+                    boundaries: Boundaries | None = None
+                    ) -> tuple[ContactNetwork, float, str | None]:
     """Forces refined by least squares on the equilibrium equations, if that helps.
 
     Wall contacts (`ContactNetwork.walls`) are polished with the pair contacts, as further
@@ -335,16 +367,15 @@ def polished_forces(search: NeighborSearch, network: ContactNetwork,
     weights = geometry.sigma**2 / geometry.distances
     forces, extra = network.forces, None
     if network.walls is not None:
-        walls = wall_rows_of(search.positions, search.diameters, search.box,
-                             network.wall_particle, network.wall)
-        extra = wall_equilibrium_columns(n, search.d, walls.particle, walls.wall)
+        walls = _wall_geometry(search, network, boundaries)
+        extra = wall_equilibrium_columns(n, walls.particle, walls.normals)
         weights = np.concatenate([weights, walls.sigma**2 / walls.distances])
         forces = np.concatenate([forces, network.wall_forces])
     polished = polish_forces(n, geometry.i, geometry.j, normals, weights, forces, extra)
     m = network.i.shape[0]
     new = replace(network, forces=polished[:m], wall_forces=polished[m:])
     new_balance = force_balance(n, geometry.i, geometry.j, normals, new.forces,
-                                ~network.rattlers, new.walls)
+                                ~network.rattlers, _wall_part(search, new, boundaries))
     if np.all(polished > 0) and new_balance < balance:
         return (new, new_balance,
                 f"forces polished by least squares (balance {balance:.1e} -> {new_balance:.1e})")
@@ -373,12 +404,12 @@ class RoundoffShrink:
 
 
 def remove_roundoff_overlaps(search: NeighborSearch,
-                             wall_axes: tuple[int, ...] = ()) -> RoundoffShrink | None:
+                             boundaries: Boundaries | None = None) -> RoundoffShrink | None:
     """The shrink that leaves no overlap (`calippso.neighbors.shrink_to_margin`, closest
-    pair `ROUNDOFF_SHRINK_MARGIN` apart), or None when no pair overlaps. With flat walls
-    along `wall_axes`, a particle crossing its wall counts as an overlap too."""
+    pair `ROUNDOFF_SHRINK_MARGIN` apart), or None when no pair overlaps. In a container
+    (`boundaries`), a particle crossing its wall counts as an overlap too."""
     close = search.pairs_near_contact()
-    walls = walls_near_contact(search, wall_axes)
+    walls = walls_near_contact(search, boundaries)
     if not len(close) and not len(walls):
         return None
     worst = min(close.smallest_gap(), walls.smallest_gap())
@@ -390,12 +421,15 @@ def remove_roundoff_overlaps(search: NeighborSearch,
     note = (f"diameters scaled by 1 - {1 - factor:.1e} to remove round-off overlaps (worst gap "
             f"{worst:.1e})")
     smallest = min(shrunk.pairs_near_contact().smallest_gap(),
-                   walls_near_contact(shrunk, wall_axes).smallest_gap())
+                   walls_near_contact(shrunk, boundaries).smallest_gap())
     return RoundoffShrink(factor, shrunk, smallest, note)
 
 
-def walls_near_contact(search: NeighborSearch, wall_axes: tuple[int, ...]) -> WallRows:
+def walls_near_contact(search: NeighborSearch, boundaries: Boundaries | None) -> WallRows:
     """Particle–wall pairs that touch, cross or nearly touch (δ ≤ σ_i/2 × (1 +
-    `NEAR_CONTACT_SLACK`)) the flat walls along `wall_axes` (`calippso.walls`)."""
-    return wall_rows_within(search.positions, search.diameters, search.box, wall_axes,
+    `NEAR_CONTACT_SLACK`)) the walls of the container `boundaries` (`calippso.walls`);
+    none in a periodic box (None)."""
+    if boundaries is None or boundaries.is_periodic:
+        return empty_walls(search.d)
+    return wall_rows_within(search.positions, search.diameters, search.box, boundaries,
                             0.0, 1.0 + NEAR_CONTACT_SLACK)

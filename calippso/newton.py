@@ -6,11 +6,13 @@ unknowns d (N_s − 1) + 1), the jamming point solves the square nonlinear syste
     |r_c|² / σ_c² = Γ      for every contact c = (i, j), with r_c = x_i − x_j (fixed image),
 
 in the positions x of the stable particles (one of them pinned) and the common inflation Γ
-of the squared diameters. A contact w of particle i with a flat wall (`calippso.walls`) adds
-the equation δ_w²/σ_w² = Γ, with δ_w the centre-to-wall distance and σ_w = σ_i/2; in a box
-with walls the pinned particle is held along the periodic axes only (a wall holds the rest). Newton's method solves it to round-off with a few sparse LU
-solves, where the LP loop would need many more LPs: the neglected |s|² of its linearisation
-keeps the LP displacements from vanishing for a long time.
+of the squared diameters. A contact w of particle i with a container wall (`calippso.walls`)
+adds the equation δ_w²/σ_w² = Γ, with δ_w the centre-to-wall distance and σ_w = σ_i/2; in a
+box with walls the pinned particle is held along the periodic axes only (a wall holds the
+rest), and in a cylinder one more coordinate holds its rotation (`pinned_coordinates`).
+Newton's method solves the system to round-off with a few sparse LU solves, where the LP
+loop would need many more LPs: the neglected |s|² of its linearisation keeps the LP
+displacements from vanishing for a long time.
 
 The answer is certified, not trusted. At the new configuration, with diameters σ √Γ, the
 CALiPPSO LP has the optimum s = 0, Γ = 1 (it is the loop's fixed point) when
@@ -32,11 +34,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .boundaries import Boundaries
 from .packing import minimum_image, wrap
 from .sparse_lu import Factors, factorize
+from .walls import wall_rows_of
 
 __all__ = ["Refinement", "refine_isostatic", "NEWTON_FAILED", "contact_jacobian",
-           "network_jacobian"]
+           "network_jacobian", "pinned_coordinates"]
 
 #: Newton stops once the largest correction is below this (mean diameters); quadratic
 #: convergence then leaves an error far below round-off.
@@ -138,31 +142,45 @@ def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_cols: np.ndarra
                          shape=(m, n_unknowns))
 
 
-def _free_columns(stable: np.ndarray, d: int, periodic: np.ndarray | None = None) -> np.ndarray:
+def _free_columns(stable: np.ndarray, d: int, pinned: np.ndarray | None = None) -> np.ndarray:
     """The Jacobian column of every coordinate, shape (N, d), numbered in row-major order; −1
-    for rattlers and for the pinned coordinates: those of the first stable particle along the
-    periodic axes (all axes when `periodic` is None)."""
+    for rattlers and for the `pinned` coordinates (shape (N, d), bool; default: every
+    coordinate of the first stable particle)."""
     free = np.repeat(stable[:, None], d, axis=1)
-    members = np.flatnonzero(stable)
-    if members.size:
-        free[members[0]] = False if periodic is None else ~periodic
+    if pinned is None:
+        members = np.flatnonzero(stable)
+        if members.size:
+            free[members[0]] = False
+    else:
+        free &= ~pinned
     columns = np.full(free.shape, -1, dtype=np.int64)
     columns[free] = np.arange(int(np.count_nonzero(free)))
     return columns
 
 
-def _wall_vectors(positions: np.ndarray, box: np.ndarray, wall_particle: np.ndarray,
-                  wall: np.ndarray) -> np.ndarray:
-    """The vector of every wall contact in the form of a pair's, shape (K, d): δ_w e_w, with
-    δ_w the centre-to-wall distance and e_w the wall's inward normal (`calippso.walls`), so
-    that |r|² = δ_w² and its gradient on the particle is 2 r."""
-    axis = wall // 2
-    x = positions[wall_particle, axis]
-    inward = 1.0 - 2.0 * (wall % 2)
-    vectors = np.zeros((wall_particle.shape[0], positions.shape[1]))
-    vectors[np.arange(wall_particle.shape[0]), axis] = inward * np.where(wall % 2 == 0, x,
-                                                                         box[axis] - x)
-    return vectors
+def pinned_coordinates(positions: np.ndarray, box: np.ndarray, stable: np.ndarray,
+                       boundaries: Boundaries) -> np.ndarray:
+    """The coordinates held fixed to remove the container's zero modes, shape (N, d), bool.
+
+    The first stable particle is held along the periodic axes (a flat wall or a cylinder
+    holds the others). A cylinder also leaves the rotation about its axis: the stable
+    particle farthest from that axis is held along the axis of the circle's plane that its
+    rotation moves it along most.
+    """
+    n, d = positions.shape
+    pinned = np.zeros((n, d), dtype=bool)
+    members = np.flatnonzero(stable)
+    if not members.size:
+        return pinned
+    pinned[members[0]] = boundaries.periodic
+    if boundaries.cylinder_axes:
+        plane = list(boundaries.cylinder_axes)
+        offset = positions[members][:, plane] - 0.5 * box[plane]
+        farthest = int(np.argmax(np.einsum("kc,kc->k", offset, offset)))
+        # the rotation moves the particle along (−offset_b, offset_a)
+        along = plane[0] if abs(offset[farthest, 1]) >= abs(offset[farthest, 0]) else plane[1]
+        pinned[members[farthest], along] = True
+    return pinned
 
 
 def network_jacobian(vectors: np.ndarray, sigma: np.ndarray, i: np.ndarray, j: np.ndarray,
@@ -202,7 +220,7 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
                      i: np.ndarray, j: np.ndarray, stable: np.ndarray,
                      factors: Factors | None = None, *,
                      wall_particle: np.ndarray | None = None, wall: np.ndarray | None = None,
-                     periodic: np.ndarray | None = None) -> Refinement | None:
+                     boundaries: Boundaries | None = None) -> Refinement | None:
     """Solve the contact equations of an isostatic network and certify the forces.
 
     Chord steps: the Jacobian is factorised once, at the start, and its factors serve every
@@ -225,12 +243,12 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         Factors of a matrix close to the Jacobian at `positions` (the same unknowns), used
         for the first chord steps instead of a new factorisation.
     wall_particle, wall : ndarray, shape (K,), int, optional
-        Contacts of stable particles with flat walls (`calippso.walls` numbering: wall 2μ at
-        0, 2μ + 1 at L_μ); none by default.
-    periodic : ndarray, shape (d,), bool, optional
-        The periodic axes (`calippso.boundaries.Boundaries.periodic`); None: all of them.
-        The first stable particle is pinned along these only. The network is square when
-        M + K = (free coordinates) + 1.
+        Contacts of stable particles with the container's walls (`calippso.walls`
+        numbering); none by default.
+    boundaries : Boundaries, optional
+        The container (`calippso.boundaries`); None: periodic along every axis. Its zero
+        modes are removed by `pinned_coordinates`. The network is square when M + K =
+        (free coordinates) + 1.
 
     Returns
     -------
@@ -242,7 +260,11 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     n, d = positions.shape
     wall_particle = np.zeros(0, np.int64) if wall_particle is None else wall_particle
     wall = np.zeros(0, np.int64) if wall is None else wall
-    columns = _free_columns(stable, d, periodic)
+    periodic, cylinder_axes, pinned = None, (), None
+    if boundaries is not None and not boundaries.is_periodic:
+        periodic, cylinder_axes = boundaries.periodic, boundaries.cylinder_axes
+        pinned = pinned_coordinates(positions, box, stable, boundaries)
+    columns = _free_columns(stable, d, pinned)
     free = columns >= 0
     n_unknowns = int(np.count_nonzero(free)) + 1
     m = i.shape[0]
@@ -257,8 +279,8 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     moved = positions.copy()
 
     def contact_vectors() -> np.ndarray:
-        return np.concatenate([moved[i] - moved[j] + image_shift,
-                               _wall_vectors(moved, box, wall_particle, wall)])
+        return np.concatenate([moved[i] - moved[j] + image_shift, wall_rows_of(
+            moved, diameters, box, wall_particle, wall, cylinder_axes).vectors])
 
     vectors = contact_vectors()
     gamma = float(np.mean(np.einsum("md,md->m", vectors, vectors) * inverse_sigma2))

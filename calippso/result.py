@@ -103,11 +103,13 @@ class JammingResult:
     notes : list of str
         What the run repaired, retried or tried on the way (each a clause of `status`).
     wall_contacts : ndarray, shape (K, 2), int64
-        Contacts of stable particles with flat walls: (particle, wall), wall 2μ at 0 and
-        2μ + 1 at L_μ along axis μ (`calippso.walls`); empty in a periodic box.
+        Contacts of stable particles with the container's walls: (particle, wall), wall 2μ at
+        0 and 2μ + 1 at L_μ along axis μ, 2d for a cylinder (`calippso.walls`); empty in a
+        periodic box.
     wall_forces : ndarray, shape (K,)
         Their force magnitudes, in the units of `forces` (all forces together have mean 1);
-        the force on the particle points into the box, along +e_μ from the wall at 0.
+        the force on the particle points into the container, along +e_μ from the wall at 0,
+        towards the cylinder's axis from the cylinder.
     """
 
     packing: Packing
@@ -192,6 +194,27 @@ class JammingResult:
         return pressures
 
     @property
+    def cylinder_load(self) -> float:
+        """The total outward force of the particles on the cylinder (the sum of its contact
+        forces, units of `forces`); NaN without a cylinder."""
+        if not self.packing.boundaries.cylinder_axes:
+            return float("nan")
+        from .walls import cylinder_load
+
+        return cylinder_load(self.d, self.wall_contacts[:, 1], self.wall_forces)
+
+    @property
+    def cylinder_pressure(self) -> float:
+        """Pressure on the cylinder: `cylinder_load` / its area π L Π_periodic L_ν (units of
+        `forces` per length^(d−1)); NaN without a cylinder."""
+        boundaries = self.packing.boundaries
+        if not boundaries.cylinder_axes:
+            return float("nan")
+        box = self.packing.box
+        area = np.pi * box[boundaries.cylinder_axes[0]] * np.prod(box[boundaries.periodic])
+        return self.cylinder_load / float(area)
+
+    @property
     def rattler_fraction(self) -> float:
         """Fraction of particles that are rattlers."""
         return float(np.count_nonzero(self.rattlers)) / self.packing.n
@@ -227,10 +250,12 @@ class JammingResult:
             f"{self.dual_normalization:.15f}",
         ]
         if not self.packing.boundaries.is_periodic:
-            loads = ", ".join(f"{axis_name(axis)}: {self.wall_loads[axis, 1]:.6g}"
-                              for axis in self.packing.boundaries.wall_axes)
+            loads = [f"{axis_name(axis)}: {self.wall_loads[axis, 1]:.6g}"
+                     for axis in self.packing.boundaries.wall_axes]
+            if self.packing.boundaries.cylinder_axes:
+                loads.append(f"cylinder: {self.cylinder_load:.6g}")
             lines.append(f"  {self.packing.boundaries.describe()}; {self.n_wall_contacts} wall "
-                         f"contacts; force on the walls {loads}")
+                         f"contacts; force on the walls {', '.join(loads)}")
         if self.history.shape[0]:
             lines.append(f"  min gap = {self.history['min_gap'][-1]:.2e} (relative to sigma_ij)")
         return "\n".join(lines)

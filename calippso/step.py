@@ -164,7 +164,7 @@ def analyse(lp: LinearProgram, solution: LPSolution, settings: JamSettings,
     forces = 0.5 * solution.duals[rows]
     wall_forces = 0.5 * solution.duals[m + wall_rows]
     normals = pairs.vectors[rows] / pairs.distances[rows, None]
-    walls = (lp.walls.particle[wall_rows], lp.walls.wall[wall_rows], wall_forces)
+    walls = (lp.walls.particle[wall_rows], lp.walls.normals[wall_rows], wall_forces)
     balance = force_balance(n, pairs.i[rows], pairs.j[rows], normals, forces, ~rattlers,
                             walls if len(lp.walls) else None)
     s = solution.x[:-1].reshape(n, d)

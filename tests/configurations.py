@@ -24,15 +24,17 @@ def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0,
     diameters : ndarray, optional
         Diameters (mean scaled to 1); monodisperse by default. Inserted largest first.
     boundaries : Boundaries, optional
-        Flat walls (`Boundaries.walls`); a sphere is then placed inside them. Periodic by
-        default.
+        Flat walls (`Boundaries.walls`) or a cylinder (`Boundaries.cylinder`); a sphere is
+        then placed inside the container, of volume fraction `phi`. Periodic by default.
     """
     rng = np.random.default_rng(seed)
     sizes = np.ones(n) if diameters is None else np.asarray(diameters, float) / np.mean(diameters)
-    side = (np.sum(ball_volume(d, sizes / 2)) / phi) ** (1.0 / d)
+    shape = 1.0 if boundaries is None else boundaries.volume(np.ones(d))
+    side = (np.sum(ball_volume(d, sizes / 2)) / (phi * shape)) ** (1.0 / d)
     box = np.full(d, side)
     periodic = np.ones(d, bool) if boundaries is None else boundaries.periodic
     walls = () if boundaries is None else boundaries.wall_axes
+    plane = [] if boundaries is None else list(boundaries.cylinder_axes)
     order = np.argsort(-sizes)
     placed = np.zeros((0, d))
     placed_sizes = np.zeros(0)
@@ -41,6 +43,8 @@ def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0,
             trial = rng.random(d) * side
             for axis in walls:
                 trial[axis] = 0.5 * sizes[k] + rng.random() * (side - sizes[k])
+            if plane and np.linalg.norm(trial[plane] - 0.5 * side) > 0.5 * (side - sizes[k]):
+                continue
             delta = placed - trial
             delta -= np.where(periodic, box, 0.0) * np.round(delta / box)
             if np.all(np.einsum("nd,nd->n", delta, delta) > (0.5 * (placed_sizes + sizes[k])) ** 2):

@@ -175,15 +175,13 @@ def _packing_generation_folder(tmp: Path, boundaries_line: str) -> Path:
 
 
 @pytest.mark.parametrize("line, pattern", [
-    ("Boundaries mode: 2", r"boundaries mode 2 \(periodic in z inside a circle in xy\) is not "
-                           r"supported; calippso reads periodic packings \(mode 1\) and "
-                           r"rectangles \(mode 3\) only$"),
     ("Boundaries mode: 4", r"boundaries mode 4 \(periodic in z inside a trapezoid in xy\) is "
-                           r"not supported"),
+                           r"not supported; calippso reads periodic packings \(mode 1\), "
+                           r"cylinders \(mode 2\) and rectangles \(mode 3\)$"),
     ("Boundaries mode: 7", r"unknown boundaries mode 7; PackingGeneration's modes are 1, 2, 3, "
                            r"4$"),
     ("Boundaries mode: cylinder", r"'Boundaries mode:' is not an integer: 'cylinder'$"),
-], ids=["cylinder", "trapezoid", "unknown-mode", "non-numeric-mode"])
+], ids=["trapezoid", "unknown-mode", "non-numeric-mode"])
 def test_packing_generation_containers_are_refused(tmp_path, line, pattern):
     """A container packing is never read as a periodic one: one line naming the file."""
     folder = _packing_generation_folder(tmp_path, line)
@@ -250,10 +248,12 @@ CLI = [sys.executable, "-m", "calippso"]
     (lambda tmp: _write(tmp, "nan.dat", SKOGE_HEADER + "0 0 0\n1 1 1\nnan 2 2\n0.5 2.5 1\n"),
      r"non-finite"),
     (lambda tmp: _write(tmp, "garbage.npz", b"PK\x03\x04 not a zip"), r"unreadable \.npz"),
+    (lambda tmp: _packing_generation_folder(tmp, "Boundaries mode: 4"),
+     r"generation\.conf: boundaries mode 4 .* is not supported"),
     (lambda tmp: _packing_generation_folder(tmp, "Boundaries mode: 2"),
-     r"generation\.conf: boundaries mode 2 .* is not supported"),
+     r"packing\.xyzd: .* outside the container or overlapping its wall \(the cylinder"),
 ], ids=["missing", "unknown-format", "truncated", "non-numeric", "nan", "garbage-npz",
-        "packing-generation-cylinder"])
+        "packing-generation-trapezoid", "packing-generation-outside-cylinder"])
 def test_cli_reports_bad_files(tmp_path, make, pattern):
     path = make(tmp_path)
     done = subprocess.run([*CLI, "jam", str(path), "-o", str(tmp_path / "out.npz")],

@@ -6,12 +6,14 @@ porosities from `packing.nfo`. The box side comes from "Packing size:" in `gener
 and its "Boundaries mode:" says the container (a file without the line is periodic):
 
 * 1, periodic in x, y and z;
+* 2, a cylinder: a circle of diameter X = Y inscribed in the box in xy, centred at
+  (X/2, Y/2), periodic in z (`calippso.boundaries.Boundaries.cylinder`);
 * 3, a rectangle in xy: flat walls at x = 0, X and y = 0, Y, periodic in z
-  (`calippso.boundaries.Boundaries.walls`); its porosities use the box's volume, so the
-  diameters are rescaled as in mode 1.
+  (`calippso.boundaries.Boundaries.walls`).
 
-Modes 2 (a cylinder) and 4 (a trapezoid) are refused until calippso can jam them. `write`
-writes modes 1 and 3.
+The diameters are rescaled as in mode 1 in every mode (the rescale is a ratio of two
+porosities of the same container). Mode 4 (a trapezoid) is refused until calippso can jam
+it. `write` writes modes 1, 2 and 3.
 """
 
 from __future__ import annotations
@@ -31,9 +33,11 @@ BOUNDARIES_MODES = {1: "periodic in x, y and z",
                     4: "periodic in z inside a trapezoid in xy"}
 #: The modes calippso reads.
 PERIODIC_MODE = 1
+CYLINDER_MODE = 2
 RECTANGLE_MODE = 3
-#: Axes with walls in the rectangle mode (x and y).
+#: Axes with walls in the rectangle mode, and of the circle in the cylinder mode (x and y).
 RECTANGLE_AXES = (0, 1)
+CYLINDER_AXES = (0, 1)
 
 
 def _field(text: str, label: str, path: Path) -> list[float]:
@@ -48,8 +52,7 @@ def _field(text: str, label: str, path: Path) -> list[float]:
 
 def _boundaries_mode(text: str, path: Path) -> int:
     """The "Boundaries mode:" of `generation.conf` (text `text`): `PERIODIC_MODE` when the
-    line is absent; ValueError naming `path` and the mode unless it is `PERIODIC_MODE` or
-    `RECTANGLE_MODE`."""
+    line is absent; ValueError naming `path` and the mode unless calippso reads it."""
     match = re.search(r"Boundaries mode\s*:\s*([^\n]*)", text)
     if not match:
         return PERIODIC_MODE
@@ -61,10 +64,11 @@ def _boundaries_mode(text: str, path: Path) -> int:
     if mode not in BOUNDARIES_MODES:
         raise ValueError(f"{path}: unknown boundaries mode {mode}; PackingGeneration's modes "
                          f"are {', '.join(map(str, BOUNDARIES_MODES))}")
-    if mode not in (PERIODIC_MODE, RECTANGLE_MODE):
+    if mode not in (PERIODIC_MODE, CYLINDER_MODE, RECTANGLE_MODE):
         raise ValueError(f"{path}: boundaries mode {mode} ({BOUNDARIES_MODES[mode]}) is not "
-                         f"supported; calippso reads periodic packings (mode {PERIODIC_MODE}) "
-                         f"and rectangles (mode {RECTANGLE_MODE}) only")
+                         f"supported; calippso reads periodic packings (mode {PERIODIC_MODE}), "
+                         f"cylinders (mode {CYLINDER_MODE}) and rectangles "
+                         f"(mode {RECTANGLE_MODE})")
     return mode
 
 
@@ -92,7 +96,8 @@ def read(path: Path) -> Packing:
     theoretical = _field(nfo_text, "Theoretical Porosity", nfo)[0]
     final = _field(nfo_text, "Final Porosity", nfo)[0]
     scale = ((1.0 - final) / (1.0 - theoretical)) ** (1.0 / 3.0)
-    boundaries = Boundaries.walls(3, RECTANGLE_AXES) if mode == RECTANGLE_MODE else None
+    boundaries = {PERIODIC_MODE: None, CYLINDER_MODE: Boundaries.cylinder(3, CYLINDER_AXES),
+                  RECTANGLE_MODE: Boundaries.walls(3, RECTANGLE_AXES)}[mode]
     try:
         return Packing(records[:, :3], records[:, 3] * scale, box, boundaries)
     except ValueError as error:
@@ -103,8 +108,8 @@ def write(packing: Packing, path: Path) -> Path:
     """Write `packing.xyzd` with true diameters, plus a consistent `packing.nfo` and `generation.conf`.
 
     The `.nfo` states equal final and theoretical porosity, so reading back applies no rescale.
-    The conf's "Boundaries mode:" is 1 for a periodic packing, 3 for walls in x and y with z
-    periodic; other containers are refused.
+    The conf's "Boundaries mode:" is 1 for a periodic packing, 2 for a cylinder in xy and 3
+    for walls in x and y, z periodic in both; other containers are refused.
     """
     if packing.d != 3:
         raise ValueError(f"PackingGeneration files hold d = 3 only, this packing has d = {packing.d}")
@@ -112,9 +117,12 @@ def write(packing: Packing, path: Path) -> Path:
         mode = PERIODIC_MODE
     elif packing.boundaries == Boundaries.walls(3, RECTANGLE_AXES):
         mode = RECTANGLE_MODE
+    elif packing.boundaries == Boundaries.cylinder(3, CYLINDER_AXES):
+        mode = CYLINDER_MODE
     else:
-        raise ValueError(f"PackingGeneration holds periodic boxes and rectangles (walls in x, y; "
-                         f"periodic in z), not {packing.boundaries.describe()}")
+        raise ValueError(f"PackingGeneration holds periodic boxes, cylinders in x, y and "
+                         f"rectangles (walls in x, y), periodic in z, not "
+                         f"{packing.boundaries.describe()}")
     path = Path(path)
     folder = path if path.suffix != ".xyzd" else path.parent
     folder.mkdir(parents=True, exist_ok=True)
