@@ -163,19 +163,18 @@ def test_generators_get_the_boundaries_only_when_they_take_them():
     assert call_with_boundaries(periodic_only, None, 3, None, 3, seed=1) == 1
 
 
-def test_a_generator_without_walls_refuses_in_one_line(tmp_path, capfd):
-    """`generate fb --walls x`: written with walls if FB takes them, else one line, no file."""
-    import inspect
-
-    import generators
-
-    code, _, err = _run(capfd, "generate", "fb", "--n", "16", "--walls", "x", "-o",
-                        tmp_path / "fb.npz", "--quiet")
-    if "boundaries" in inspect.signature(generators.force_biased).parameters:
-        assert code == 0 and calippso.read(tmp_path / "fb.npz").boundaries == WALLS_X
-    else:
-        assert code == 1 and err.count("\n") == 1 and "periodic packings only" in err
-        assert not (tmp_path / "fb.npz").exists()
+@pytest.mark.parametrize("argv, message", [
+    (["mls", "--n", "16", "--walls", "x"], "--walls x: generators.closest_jamming makes periodic"),
+    (["ls", "--n", "16", "--cylinder", "x,y"], "cylinder"),
+])
+def test_a_generator_refuses_a_container_it_cannot_make_in_one_line(tmp_path, capfd, argv,
+                                                                    message):
+    """MLS takes no boundaries; LS takes walls but refuses a cylinder itself. Nothing is
+    written."""
+    code, out, err = _run(capfd, "generate", *argv, "-o", tmp_path / "g.npz", "--quiet")
+    assert code == 1 and out == "" and err.count("\n") == 1
+    assert err.startswith("error: ") and message in err
+    assert not (tmp_path / "g.npz").exists()
 
 
 def test_a_quench_between_walls_jams_on_its_own_network(tmp_path, capfd):
@@ -198,3 +197,30 @@ def test_a_quench_between_walls_jams_on_its_own_network(tmp_path, capfd):
     record = json.loads(out)
     assert record["isostatic"] and record["n_wall_contacts"] > 0
     assert read_result(jammed).packing.boundaries == WALLS_X
+
+
+def test_a_cylinder_round_trip(tmp_path, capfd, monkeypatch):
+    """generate random --cylinder, jam, report, render: the cylinder survives, its contacts
+    carry the whole load, the profile starts low at the curved wall."""
+    pytest.importorskip("matplotlib")
+    import functools
+
+    monkeypatch.setattr(calippso, "report", functools.partial(calippso.report, n_bootstrap=20))
+    cylinder = Boundaries.cylinder(3, ["x", "y"])
+    start, jammed = tmp_path / "c.npz", tmp_path / "cj.npz"
+    assert _run(capfd, "generate", "random", "--n", "64", "--cylinder", "x,y", "--seed", "1",
+                "-o", start, "--quiet")[0] == 0
+    code, out, err = _run(capfd, "jam", start, "-o", jammed, "--json", "--quiet")
+    assert code == 0, err
+    result = read_result(jammed)
+    assert result.packing.boundaries == cylinder and result.isostatic
+    code, _, err = _run(capfd, "report", jammed, "-o", tmp_path / "report", "--quiet")
+    assert code == 0, err
+    walls = json.loads((tmp_path / "report" / "summary.json").read_text())["walls"]
+    (row,) = walls["loads"]
+    assert row["wall"] == "cylinder" and row["contacts"] == result.n_wall_contacts > 0
+    assert row["load"] == pytest.approx(np.sum(result.wall_forces), rel=1e-12)
+    assert walls["layering"]["phi"][0] < 0.5 * result.phi
+    code, out, err = _run(capfd, "render", jammed, "-o", tmp_path / "c.png", "--backend",
+                          "matplotlib", "--size", "200", "--json")
+    assert code == 0 and json.loads(out)["boundaries"] == str(cylinder)

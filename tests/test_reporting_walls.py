@@ -195,8 +195,8 @@ def test_pictures_draw_the_walls(tmp_path, monkeypatch):
 
 
 def test_the_walls_example_prints_a_layered_profile(tmp_path, monkeypatch, capsys):
-    """examples/walls_layering.py --tiny: isostatic between walls, sparse at the wall, the
-    picture written (also a case of tests/test_examples.py)."""
+    """examples/walls_layering.py --tiny: isostatic in its cylinder, sparse at the wall, the
+    picture written (the tests/test_examples.py case runs it too)."""
     pytest.importorskip("matplotlib")
     import runpy
     from pathlib import Path
@@ -206,7 +206,7 @@ def test_the_walls_example_prints_a_layered_profile(tmp_path, monkeypatch, capsy
     runpy.run_path(str(script), run_name="example_walls_layering")["main"](
         ["--tiny", "--picture", "--out", str(tmp_path)])
     output = capsys.readouterr().out
-    assert "(isostatic)" in output and "walls in x" in output
+    assert "(isostatic)" in output and "cylinder in x, y" in output
     first = next(line for line in output.splitlines() if line.startswith("   0.12"))
-    assert float(first.split()[1]) < WALL_BIN_PHI * 2        # a quarter-diameter bin at the wall
+    assert float(first.split()[1]) < 2 * WALL_BIN_PHI       # a quarter-diameter bin at the wall
     assert (tmp_path / "layering.png").stat().st_size > 0

@@ -316,9 +316,10 @@ def with_container(packing: Packing, container: Container | None, source: Path) 
         return dataclasses.replace(packing, boundaries=wanted)
 
 
-def call_with_boundaries(generator: Callable, container: Container | None, d: int, *args,
+def call_with_boundaries(generator: Callable, container: Container | None, d: int, /, *args,
                          **kwargs):
-    """`generator(*args, **kwargs)`, with ``boundaries=`` from `container` when one is given.
+    """`generator(*args, **kwargs)`, with ``boundaries=`` from `container` (in dimension `d`)
+    when one is given.
 
     Raises
     ------
