@@ -210,3 +210,18 @@ def test_the_walls_example_prints_a_layered_profile(tmp_path, monkeypatch, capsy
     first = next(line for line in output.splitlines() if line.startswith("   0.12"))
     assert float(first.split()[1]) < 2 * WALL_BIN_PHI       # a quarter-diameter bin at the wall
     assert (tmp_path / "layering.png").stat().st_size > 0
+
+
+def test_povray_scenes_hold_the_walls():
+    """A thin translucent slab outside each flat wall, an open cylinder of the box's radius."""
+    from calippso.reporting.containers import povray_walls
+
+    box = np.array([4.0, 5.0, 6.0])
+    slabs = povray_walls(Packing([[2.0, 2.5, 3.0]], [1.0], box, Boundaries.walls(3, ["y"])))
+    assert len(slabs) == 2 and all(line.startswith("box {") and "rgbt" in line
+                                   for line in slabs)
+    assert "<4.0, 0.0, 6.0>" in slabs[0] and "<0.0, 5.0, 0.0>" in slabs[1]    # y ≤ 0, y ≥ L
+    square = np.array([4.0, 4.0, 6.0])
+    (tube,) = povray_walls(Packing([[2.0, 2.0, 3.0]], [1.0], square,
+                                   Boundaries.cylinder(3, ["x", "y"])))
+    assert tube.startswith("cylinder { <2.0, 2.0, 0.0>, <2.0, 2.0, 6.0>, 2.0 open")
