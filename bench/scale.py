@@ -16,6 +16,8 @@ pressure --pressure, then `jam`. `--generator quench`: the soft-sphere quench
     python bench/scale.py --generator quench --seed 2 --cases 4:1024 5:1024
     python bench/scale.py --generator quench --quench-pressure 1e-8 --cases 3:16384 \
         --set network_first=require          # fails fast when network first cannot settle
+    python bench/scale.py --container walls:x --cases 3:1024      # flat walls at x = 0, L
+    python bench/scale.py --container cylinder:x,y --cases 3:1024  # a cylinder along z
 
 With --from-json no case is run: the rows are read back (later files win for the same N, d),
 printed, and with --plot drawn as wall time and LPs against N on log-log axes, with the
@@ -46,12 +48,19 @@ CHILD = textwrap.dedent("""
     import json, os, resource, sys, time
     import numpy as np
     import calippso
-    from calippso.neighbors import pairs_within
+    from calippso.neighbors import NeighborSearch
+    from calippso.network import walls_near_contact
     d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
     options, generator, quench_pressure = json.loads(sys.argv[5]), sys.argv[6], float(sys.argv[7])
-    seed = int(sys.argv[8])
+    seed, container = int(sys.argv[8]), sys.argv[9]
+    boundaries = calippso.Boundaries.all_periodic(d)
+    if container != "periodic":
+        kind, axes = container.split(":")
+        boundaries = getattr(calippso.Boundaries, kind)(d, axes.split(","))
     name = (f"ls_d{d}_n{n}_p{pressure:g}" if generator == "ls"
             else f"quench_d{d}_n{n}_p{quench_pressure:g}")
+    if container != "periodic":
+        name += "_" + container.replace(":", "_").replace(",", "")
     path = os.path.join(cache, f"{name}_seed{seed}.npz") if cache else ""
     clock = time.perf_counter()
     if path and os.path.exists(path):
@@ -62,15 +71,19 @@ CHILD = textwrap.dedent("""
     else:
         import generators
         sizes = generators.diameters.monodisperse(n)
+        walled = {} if boundaries.is_periodic else {"boundaries": boundaries}
         if generator == "ls":
             made = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
-                                                     seed=seed)
+                                                     seed=seed, **walled)
         else:
-            made = generators.soft_quench(sizes, d, seed=seed, target_pressure=quench_pressure)
+            made = generators.soft_quench(sizes, d, seed=seed, target_pressure=quench_pressure,
+                                          **walled)
         start, network = made.packing, getattr(made, "contacts", None)
         generate = time.perf_counter() - clock
         if path:
             extra = {} if network is None else {"contacts": network}
+            if not boundaries.is_periodic:
+                extra["boundaries"] = str(boundaries)
             np.savez(path, positions=start.positions, diameters=start.diameters,
                      box=start.box, **extra)
     clock = time.perf_counter()
@@ -83,10 +96,12 @@ CHILD = textwrap.dedent("""
     total = time.perf_counter() - clock
     history = result.history
     packing = result.packing
-    smallest_gap = float(pairs_within(packing.positions, packing.diameters, packing.box,
-                                      1.01 * packing.diameters.max()).gaps.min())
+    search = NeighborSearch(packing.positions, packing.diameters, packing.box,
+                            packing.boundaries.periodic)
+    smallest_gap = min(search.pairs_near_contact().smallest_gap(),
+                       walls_near_contact(search, packing.boundaries).smallest_gap())
     print(json.dumps({
-        "n": n, "d": d, "generator": generator, "generate": generate,
+        "n": n, "d": d, "generator": generator, "generate": generate, "container": container,
         "lps": result.iterations, "rows": int(history["rows"].max()),
         "total": total, "solver": float(history["solver_time"].sum()),
         "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -98,13 +113,15 @@ CHILD = textwrap.dedent("""
 
 def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "",
              options: dict | None = None, generator: str = "ls",
-             quench_pressure: float = 1e-7, seed: int = 1) -> dict:
+             quench_pressure: float = 1e-7, seed: int = 1,
+             container: str = "periodic") -> dict:
     """Generate (or read from `cache`) and jam one input in a subprocess with the jam
-    `options`; the row as a dict."""
+    `options`, in the `container` ("periodic", "walls:AXES" or "cylinder:AXES"); the row as
+    a dict."""
     try:
         done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache,
                                json.dumps(options or {}), generator, str(quench_pressure),
-                               str(seed)],
+                               str(seed), container],
                               capture_output=True, text=True, timeout=timeout, check=True)
     except subprocess.TimeoutExpired:
         return {"n": n, "d": d, "timeout": timeout}
@@ -212,6 +229,8 @@ def main() -> None:
     parser.add_argument("--plot", help="draw the rows to this image (needs matplotlib)")
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                         help="further jam options, e.g. interior_point=hipo")
+    parser.add_argument("--container", default="periodic",
+                        help="periodic (default), walls:AXES or cylinder:AXES, e.g. walls:x,y")
     args = parser.parse_args()
     options = parse_options(args.set)
 
@@ -227,7 +246,8 @@ def main() -> None:
     for case in args.cases:
         d, n = (int(v) for v in case.split(":"))
         rows.append(run_case(d, n, args.pressure, args.timeout, args.cache, options,
-                             args.generator, args.quench_pressure, args.seed))
+                             args.generator, args.quench_pressure, args.seed,
+                             args.container))
         print(format_row(rows[-1]), flush=True)
         if args.json:
             with open(args.json, "w") as stream:

@@ -39,6 +39,7 @@ from .network import (ContactNetwork, certify_network, network_balance, network_
                       polished_forces, remove_roundoff_overlaps, touching_network,
                       walls_near_contact)
 from .network_first import SettledNetwork, settle_candidate
+from .container_guess import container_candidates
 from .network_guess import Candidate, candidate_networks, check_network_hint
 from .newton import NEWTON_FAILED, Refinement, pinned_coordinates, refine_isostatic
 from .packing import Packing, wrap
@@ -325,22 +326,17 @@ class _Jammer:
 
     def _without_network_stages(self, settings: JamSettings,
                                 hint: np.ndarray | None) -> tuple[JamSettings, None]:
-        """Settings for a box with walls: the stages that do not know walls yet (network
-        first, contact pivots) are switched off, each said in a note; the LP loop and the
-        Newton stage, whose rows, equations and forces include the walls, do the run."""
-        if settings.network_first == "require":
-            raise ValueError("network_first='require' cannot be met with walls: the "
-                             "network-first stage does not handle wall contacts yet")
-        skipped = [name for name, on in (("network first", settings.network_first != "off"),
-                                         ("contact pivots", settings.pivots != "off"))
-                   if on]
-        if skipped:
-            self.history.note(f"{', '.join(skipped)} skipped: not wall-aware yet "
+        """Settings for a container: contact pivots, which do not know wall contacts yet,
+        are switched off with a note, and so is a network hint (the network-first stage in a
+        container reads its candidates from the gaps of pairs and walls,
+        `calippso.container_guess`)."""
+        if settings.pivots != "off":
+            self.history.note(f"contact pivots skipped: not wall-aware yet "
                               f"({self.boundaries.describe()})")
         if hint is not None:
-            self.history.note("the network hint was not used: the network-first stage does "
-                              "not handle walls yet")
-        return settings.with_changes(network_first="off", pivots="off"), None
+            self.history.note("the network hint was not used: in a container the network "
+                              "is read from the gaps of the pairs and the walls")
+        return settings.with_changes(pivots="off"), None
 
     def _walls(self, search: NeighborSearch, step: float, stable: np.ndarray | None,
                forced: np.ndarray) -> WallRows:
@@ -583,6 +579,8 @@ class _Jammer:
         stage. Each adds a history record (stage "guess"), a certified one also the pivot
         and Newton records; the notes say what happened.
         """
+        if self.walled:
+            return self._container_network_first()
         start = time.perf_counter()
         candidates = candidate_networks(self.search, self.d, self.hint)[:MAX_NETWORK_GUESSES]
         if not candidates:
@@ -618,6 +616,47 @@ class _Jammer:
                 # network, and its Newton stage must not skip it as tried before
                 self.failed_networks.discard(network_key(settled.i, settled.j, self.n))
             failures.append(f"{candidate.source}: {failure}")
+            start = time.perf_counter()
+        self.history.note(f"network first: no guessed network was certified "
+                          f"({'; '.join(failures)}), so the LP loop ran")
+        return None
+
+    def _container_network_first(self) -> tuple[ContactNetwork, StopReason] | None:
+        """The network-first stage in a container: isostatic networks of pairs and wall
+        contacts read from the gaps (`calippso.container_guess`), each certified by the
+        Newton stage or refused; at most `MAX_NETWORK_GUESSES`. Each adds a history record
+        (stage "guess"); the notes say what happened."""
+        start = time.perf_counter()
+        candidates = container_candidates(self.search, self.boundaries)[:MAX_NETWORK_GUESSES]
+        if not candidates:
+            self.history.note("network first: the input holds no isostatic network of "
+                              "particle and wall contacts (not near a jamming point), so the "
+                              "LP loop ran")
+            return None
+        failures = []
+        for candidate in candidates:
+            walls = candidate.walls
+            network = ContactNetwork(candidate.pairs.i, candidate.pairs.j,
+                                     np.zeros(len(candidate.pairs)), candidate.rattlers,
+                                     float("nan"), "none", from_lp=False,
+                                     wall_particle=walls.particle, wall=walls.wall,
+                                     wall_forces=np.zeros(len(walls)))
+            self.history.add_guess(seconds=time.perf_counter() - start,
+                                   rows=network.n_contacts, n_contacts=network.n_contacts,
+                                   n_stable=network.n_stable,
+                                   min_gap=self.search.pairs_near_contact().smallest_gap(),
+                                   phi=self.packing().phi)
+            origin = (f"read from the gaps of the pairs and walls, {network.n_contacts} "
+                      f"contacts, {len(walls)} with walls")
+            refined = self._newton(network, origin=origin)
+            if refined is not None:
+                if self.callback is not None:
+                    self.callback({**self.history.last.as_dict(), "iteration": 0,
+                                   "packing": self.packing()})
+                return refined, StopReason.NETWORK_FIRST
+            failures.append(self.newton_failure)
+            # refused from the input's positions: the LP loop may still reach this network
+            self.failed_networks.discard(network.key())
             start = time.perf_counter()
         self.history.note(f"network first: no guessed network was certified "
                           f"({'; '.join(failures)}), so the LP loop ran")

@@ -248,19 +248,21 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
     moved = refined.positions
     search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order,
                                                   periodic)
-    if periodic is None and refined.positive and overlapping.any() and np.all(
-            network.rattlers[close.i[overlapping]] | network.rattlers[close.j[overlapping]]):
+    near_walls = walls_near_contact(search, boundaries)
+    crossing = _crossing(near_walls, network)
+    if refined.positive and (overlapping.any() or crossing.any()) and np.all(
+            network.rattlers[close.i[overlapping]] | network.rattlers[close.j[overlapping]]) \
+            and np.all(network.rattlers[near_walls.particle[crossing]]):
         # only rattlers overlap: the cage moved under a rattler that touched it
-        separated = separate_rattlers(moved, refined.diameters, box, network.rattlers)
+        separated = separate_rattlers(moved, refined.diameters, box, network.rattlers,
+                                      boundaries=boundaries)
         if separated is not None:
             moved = separated
-            search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order)
-    near_walls = walls_near_contact(search, boundaries)
-    n_walls = wall_ids(positions.shape[1])
-    outside_walls = ~np.isin(near_walls.keys(n_walls),
-                             network.wall_particle * n_walls + network.wall)
-    crossing = int(np.count_nonzero(outside_walls
-                                    & (near_walls.gaps < -NEWTON_OVERLAP_TOLERANCE)))
+            search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order,
+                                                          periodic)
+            near_walls = walls_near_contact(search, boundaries)
+    outside_walls = _outside_network(near_walls, network)
+    crossing = int(np.count_nonzero(_crossing(near_walls, network)))
     touching = 0
     if guessed:
         stable = ~network.rattlers
@@ -286,6 +288,18 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
     return Certified(moved, refined.diameters, search, certified,
                      network_balance(search, certified, boundaries), close.smallest_gap(),
                      refined), ""
+def _outside_network(walls: WallRows, network: ContactNetwork) -> np.ndarray:
+    """Which particle–wall pairs are not wall contacts of the network, shape (K,), bool."""
+    n_walls = wall_ids(walls.normals.shape[1])
+    return ~np.isin(walls.keys(n_walls), network.wall_particle * n_walls + network.wall)
+
+
+def _crossing(walls: WallRows, network: ContactNetwork) -> np.ndarray:
+    """Which particle–wall pairs outside the network cross their wall beyond
+    `NEWTON_OVERLAP_TOLERANCE`, shape (K,), bool."""
+    return _outside_network(walls, network) & (walls.gaps < -NEWTON_OVERLAP_TOLERANCE)
+
+
 def touching_network(search: NeighborSearch, network: ContactNetwork, balance: float, d: int,
                      balance_tolerance: float, boundaries: Boundaries | None = None
                      ) -> tuple[ContactNetwork, float, str | None]:

@@ -18,6 +18,7 @@ Newton stage, and the certificate decides.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,7 +28,8 @@ from .neighbors import NeighborSearch, Pairs
 from .floppy_modes import MAX_CLOSURES
 from .restricted_lp import MAX_OPEN_CONTACTS
 
-__all__ = ["CANDIDATE_GAP", "Candidate", "candidate_networks", "check_network_hint"]
+__all__ = ["CANDIDATE_GAP", "Candidate", "candidate_networks", "check_network_hint",
+           "gap_splits", "fewest_not_hypostatic"]
 
 #: Pairs with a relative gap h below this are candidates for contacts. A near-jammed input has
 #: its contacts within ~1e-6 of closing; 1e-3 leaves room for the jump above them.
@@ -140,7 +142,7 @@ def candidate_networks(search: NeighborSearch, d: int,
                                     near_gap))
     isostatic = _isostatic_count(ranked, n, d)
     near = isostatic > 0 and ranked.gaps[isostatic - 1] < NEAR_CONTACT_GAP
-    for count in ([isostatic] if near else []) + _splits(ranked.gaps, n, d):
+    for count in ([isostatic] if near else []) + gap_splits(ranked.gaps, n, d):
         pairs = ranked.subset(np.arange(count))
         candidates.append(Candidate(pairs, "gap spectrum", _near_gap(pairs)))
     unique: list[Candidate] = []
@@ -156,7 +158,7 @@ def candidate_networks(search: NeighborSearch, d: int,
     return unique
 
 
-def _splits(sorted_gaps: np.ndarray, n: int, d: int) -> list[int]:
+def gap_splits(sorted_gaps: np.ndarray, n: int, d: int) -> list[int]:
     """Contact counts at the largest jumps of the sorted gaps, largest jump first.
 
     Only counts from N to 2 d N are looked at (an isostatic network of N particles has about
@@ -174,14 +176,20 @@ def _splits(sorted_gaps: np.ndarray, n: int, d: int) -> list[int]:
 
 def _isostatic_count(ranked: Pairs, n: int, d: int) -> int:
     """The smallest count k of the closest pairs whose network, after rattler removal, is not
-    hypostatic (found by bisection; the excess grows with k up to the jumps of rattler
-    removal); 0 if even all pairs are hypostatic."""
+    hypostatic; 0 if even all pairs are hypostatic."""
     def excess(count: int) -> int:
         rattlers, kept = remove_rattlers(n, d, ranked.i[:count], ranked.j[:count])
         n_stable = int(n - rattlers.sum())
         return isostaticity_gap(int(kept.sum()), n_stable, d) if n_stable else -1
 
-    low, high = 1, len(ranked)
+    return fewest_not_hypostatic(len(ranked), excess)
+
+
+def fewest_not_hypostatic(size: int, excess: Callable[[int], int]) -> int:
+    """The smallest count k ≤ `size` of the closest contacts whose network is not hypostatic,
+    by bisection (`excess(k)`, the isostaticity gap of the closest k after rattler removal,
+    grows with k up to the jumps of rattler removal); 0 if even all are hypostatic."""
+    low, high = 1, size
     if high == 0 or excess(high) < 0:
         return 0
     while low < high:

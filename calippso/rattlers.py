@@ -14,7 +14,9 @@ rattler that touched its cage can end up overlapping it by the distance the cage
 
 one row per pair with a rattler that could touch within the displacement bound. By the
 Cauchy–Schwarz inequality |r + Δ| ≥ n·(r + Δ) = |r| + n·Δ, so t ≥ 0 leaves every such pair
-apart exactly, however large the displacement: the rows are not a linearisation.
+apart exactly, however large the displacement: the rows are not a linearisation. In a
+container, a rattler near a wall adds the row δ' + e_w·s_i ≥ σ_w (1 + t) of `calippso.walls`
+(exact for a flat wall, with the curvature margin for a cylinder).
 """
 
 from __future__ import annotations
@@ -73,7 +75,8 @@ def remove_rattlers(n: int, d: int, i: np.ndarray, j: np.ndarray,
 
 def separate_rattlers(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                       rattlers: np.ndarray, reach: float = RATTLER_REACH,
-                      clearance: float = RATTLER_CLEARANCE) -> np.ndarray | None:
+                      clearance: float = RATTLER_CLEARANCE,
+                      boundaries=None) -> np.ndarray | None:
     """Positions with the rattlers moved so that no pair involving a rattler overlaps.
 
     Parameters
@@ -88,6 +91,8 @@ def separate_rattlers(positions: np.ndarray, diameters: np.ndarray, box: np.ndar
         Bound on each displacement component of a rattler.
     clearance : float
         Target relative gap h = |r|/σ − 1 of every pair with a rattler.
+    boundaries : calippso.boundaries.Boundaries, optional
+        The container; None: periodic along every axis.
 
     Returns
     -------
@@ -97,16 +102,22 @@ def separate_rattlers(positions: np.ndarray, diameters: np.ndarray, box: np.ndar
     """
     from scipy.optimize import linprog   # the LP solver, only when rattlers must move
 
+    from .walls import empty_walls, wall_rows_within
+
     n, d = positions.shape
     movable = np.flatnonzero(rattlers)
     if movable.size == 0:
         return positions
-    search = NeighborSearch(positions, diameters, box)
+    periodic = None if boundaries is None or boundaries.is_periodic else boundaries.periodic
+    search = NeighborSearch(positions, diameters, box, periodic)
     span = 2.0 * np.sqrt(d) * reach
     close = search.pairs_within(float(diameters.max()) * (1.0 + clearance) + span)
     involved = rattlers[close.i] | rattlers[close.j]
     close = close.subset(involved & (close.distances <= close.sigma * (1.0 + clearance) + span))
-    if not len(close):
+    walls = (empty_walls(d) if periodic is None else
+             wall_rows_within(positions, diameters, box, boundaries, span, 1.0 + clearance))
+    walls = walls.subset(rattlers[walls.particle])
+    if not len(close) and not len(walls):
         return positions
     column = np.full(n, -1, dtype=np.int64)
     column[movable] = d * np.arange(movable.size)
@@ -122,17 +133,24 @@ def separate_rattlers(positions: np.ndarray, diameters: np.ndarray, box: np.ndar
     rows.append(np.arange(len(close)))
     cols.append(np.full(len(close), n_cols - 1))
     values.append(close.sigma)
+    # a wall row: −e_w·s_i + σ_w t ≤ δ' − σ_w
+    wall_row, axis = np.nonzero(walls.normals)
+    rows += [len(close) + wall_row, len(close) + np.arange(len(walls))]
+    cols += [column[walls.particle[wall_row]] + axis, np.full(len(walls), n_cols - 1)]
+    values += [-walls.normals[wall_row, axis], walls.sigma]
+    distances = walls.row_distances(reach)
     matrix = sp.csr_matrix((np.concatenate(values), (np.concatenate(rows),
                                                      np.concatenate(cols))),
-                           shape=(len(close), n_cols))
+                           shape=(len(close) + len(walls), n_cols))
     cost = np.zeros(n_cols)
     cost[-1] = -1.0
     bounds = [(-reach, reach)] * (n_cols - 1) + [(-1.0, clearance)]
-    answer = linprog(cost, A_ub=matrix, b_ub=close.distances - close.sigma, bounds=bounds,
+    upper = np.concatenate([close.distances - close.sigma, distances - walls.sigma])
+    answer = linprog(cost, A_ub=matrix, b_ub=upper, bounds=bounds,
                      method="highs", options={"primal_feasibility_tolerance": 1e-10,
                                               "dual_feasibility_tolerance": 1e-10})
     if answer.status != 0 or answer.x[-1] < 0:
         return None
     moved = positions.copy()
     moved[movable] += answer.x[:-1].reshape(movable.size, d)
-    return wrap(moved, box)
+    return wrap(moved, box, periodic)

@@ -31,7 +31,7 @@ def test_walls_round_trip(tmp_path, suffix, d, axes):
     packing = _walled(d, axes)
     path = tmp_path / f"packing{suffix}"
     if suffix == ".xyzd" and (d, axes) != (3, [0, 1]):
-        why = "d = 3 only" if d != 3 else "PackingGeneration holds periodic boxes and rectangles"
+        why = "d = 3 only" if d != 3 else "PackingGeneration holds periodic boxes, cylinders"
         with pytest.raises(ValueError, match=why) as refused:
             calippso.write(packing, path)
         assert "\n" not in str(refused.value)

@@ -223,7 +223,7 @@ def test_jam_between_flat_walls(d, n, axes, polydisperse):
     result = calippso.jam(start)
     assert_jammed_between_walls(result)
     assert result.packing.boundaries == start.boundaries
-    assert any("network first, contact pivots skipped" in note for note in result.notes)
+    assert any("contact pivots skipped" in note for note in result.notes)
     # the Newton stage solves the pair and wall contact equations and certifies the point
     assert result.stop_reason is calippso.StopReason.CERTIFIED_NEWTON
     assert result.history["stage"].tolist().count("newton") == 1
@@ -256,10 +256,36 @@ def test_walls_leave_a_periodic_run_unchanged():
     assert not any("wall" in note for note in result.notes)
 
 
-def test_jam_refuses_what_it_cannot_do_with_walls():
+def test_a_loose_walled_start_has_no_network_to_certify():
+    """A random start between walls is far from jamming: network first finds no isostatic
+    network in its gaps, so ``network_first="require"`` fails in one line."""
     start = walled_start(64, 2, [0])
-    with pytest.raises(ValueError, match="network_first='require'"):
+    with pytest.raises(calippso.JammingError, match="network_first='require'"):
         calippso.jam(start, network_first="require")
+
+
+@pytest.mark.parametrize("boundaries, d, n", [
+    (Boundaries.walls(3, [0]), 3, 128),
+    (Boundaries.walls(2, [0, 1]), 2, 64),
+    (Boundaries.cylinder(3, (0, 1)), 3, 128),
+])
+def test_a_near_jammed_packing_in_a_container_is_certified_with_no_lp(boundaries, d, n):
+    """A jammed packing in a container, moved by 1e-9 and shrunk by 1e-8, comes back to the
+    same φ_J (to 1e-9) and the same particle and wall contacts with no LP: its network is read
+    from the gaps of the pairs and walls and certified by the Newton stage."""
+    start = random_sequential_addition(n, d, 0.45 if d == 2 else 0.3, 1, lognormal(n, 0.1, 1),
+                                       boundaries)
+    jammed = calippso.jam(start)
+    packing = jammed.packing
+    moved = packing.positions + 1e-9 * np.random.default_rng(0).standard_normal(
+        packing.positions.shape)
+    again = calippso.jam(Packing(moved, packing.diameters * (1 - 1e-8), packing.box,
+                                 boundaries), network_first="require")
+    assert again.stop_reason is calippso.StopReason.NETWORK_FIRST and again.iterations == 0
+    assert again.packing.phi == pytest.approx(packing.phi, abs=1e-9)
+    np.testing.assert_array_equal(again.contacts, jammed.contacts)
+    np.testing.assert_array_equal(again.wall_contacts, jammed.wall_contacts)
+    assert again.isostatic and again.force_balance <= BALANCE
 
 
 def test_poisson_places_centres_inside_the_container():
