@@ -27,6 +27,7 @@ CASES = [
     (["spherocylinders.py", "--out", "{tmp}", "--picture"], "spherocylinders.png"),
     (["force_gap_report.py", "--out", "{tmp}/report"], "report.md"),
     (["ensemble.py", "--out", "{tmp}/ensemble"], "isostatic = True"),
+    (["walls_layering.py", "--tiny", "--out", "{tmp}"], "(isostatic)"),
 ]
 
 
