@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .periodic import image_component, inverse_sides
+from .periodic import has_walls, image_component, inverse_sides
 
 __all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "contact_pairs",
            "box_volume", "CONVERGED", "REBUILD", "OUT_OF_STEPS"]
@@ -358,7 +358,7 @@ def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, b
     n, d = x.shape
     blocks = partial.shape[0]
     inv = inverse_sides(box, periodic)
-    walled = not periodic.all()
+    walled = has_walls(periodic)
     for b in prange(blocks):
         lo, hi = b * BLOCK, min(n, (b + 1) * BLOCK)
         if d == 3:

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit
 
 from .cells import verlet_lists
-from .periodic import image_component, inverse_sides, wrap_into_box
+from .periodic import has_walls, image_component, inverse_sides, wrap_into_box
 
 __all__ = ["run_window", "skin_length"]
 
@@ -186,9 +186,10 @@ def _wall_collision(i, wall, v, s, scale, rate):
 
 
 @njit(cache=True)
-def _predict(i, t, x, v, tl, s, box, inv, periodic, scale, rate, start, neighbours, counter, xb,
-             c_exp, e_exp, ev_time, ev_partner, ev_count):
-    """Next event of particle i (synchronised at time t); stored in the ev_* arrays."""
+def _predict(i, t, x, v, tl, s, box, inv, scale, rate, start, neighbours, counter, xb, c_exp,
+             e_exp, ev_time, ev_partner, ev_count):
+    """Next event of particle i (synchronised at time t) among its list expiry and its pair
+    collisions; stored in the ev_* arrays (`_predict_wall` adds the walls)."""
     d = x.shape[1]
     best = t + _expiry_time(x, xb, v, i, c_exp, e_exp)
     partner = _LIST_EXPIRY
@@ -227,13 +228,19 @@ def _predict(i, t, x, v, tl, s, box, inv, periodic, scale, rate, start, neighbou
             best = t + tau
             partner = j
             count = counter[j]
-    tau, wall = _wall_event(i, x, v, s, box, periodic, scale, rate)
-    if t + tau < best:
-        best = t + tau
-        partner = _WALL - wall
     ev_time[i] = best
     ev_partner[i] = partner
     ev_count[i] = count
+
+
+@njit(cache=True)
+def _predict_wall(i, t, x, v, s, box, periodic, scale, rate, ev_time, ev_partner):
+    """After `_predict`: the collision of particle i with a wall replaces its next event if
+    it comes first. Kept out of `_predict`, so that a periodic run runs the same code."""
+    tau, wall = _wall_event(i, x, v, s, box, periodic, scale, rate)
+    if t + tau < ev_time[i]:
+        ev_time[i] = t + tau
+        ev_partner[i] = _WALL - wall
 
 
 @njit(cache=True)
@@ -332,6 +339,7 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
     neighbours = np.zeros(0, dtype=np.int64)
     r = np.empty(d)
     inv = inverse_sides(box, periodic)
+    walled = has_walls(periodic)
     while True:
         if rebuild or resync:
             for i in range(n):
@@ -349,8 +357,10 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
             now = scale + rate * t
             c_exp = 0.5 * (delta - s_max * (now - build_scale))
             for i in range(n):
-                _predict(i, t, x, v, tl, s, box, inv, periodic, now, rate, start, neighbours,
-                         counter, xb, c_exp, 0.5 * s_max * rate, ev_time, ev_partner, ev_count)
+                _predict(i, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb,
+                         c_exp, 0.5 * s_max * rate, ev_time, ev_partner, ev_count)
+                if walled:
+                    _predict_wall(i, t, x, v, s, box, periodic, now, rate, ev_time, ev_partner)
             _heapify(heap, where, ev_time)
             rebuild = False
             resync = False
@@ -374,8 +384,10 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
         at_wall = j <= _WALL
         if j == _NO_EVENT or (not at_wall and ev_count[i] != counter[j]):
             _advance(x, v, tl, i, t)
-            _predict(i, t, x, v, tl, s, box, inv, periodic, now, rate, start, neighbours,
-                     counter, xb, c_exp, e_exp, ev_time, ev_partner, ev_count)
+            _predict(i, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb, c_exp,
+                     e_exp, ev_time, ev_partner, ev_count)
+            if walled:
+                _predict_wall(i, t, x, v, s, box, periodic, now, rate, ev_time, ev_partner)
             _reposition(heap, where, ev_time, i)
             continue
         _advance(x, v, tl, i, t)
@@ -420,8 +432,10 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
             resync = True
             continue
         for k in (i, j):
-            _predict(k, t, x, v, tl, s, box, inv, periodic, now, rate, start, neighbours,
-                     counter, xb, c_exp, e_exp, ev_time, ev_partner, ev_count)
+            _predict(k, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb, c_exp,
+                     e_exp, ev_time, ev_partner, ev_count)
+            if walled:
+                _predict_wall(k, t, x, v, s, box, periodic, now, rate, ev_time, ev_partner)
             _reposition(heap, where, ev_time, k)
             if at_wall:                     # (j is a wall: particle i alone)
                 break

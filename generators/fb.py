@@ -14,7 +14,7 @@ from ._checks import (check_boundaries, check_diameters, check_dimension, check_
                       check_positive, phi_estimate, remove_roundoff_overlap)
 from ._progress import Progress
 from .cells import verlet_lists
-from .periodic import image_component, inverse_sides, wrap_into_box
+from .periodic import has_walls, image_component, inverse_sides, wrap_into_box
 from .initial import poisson
 from .result import GenerationResult, make_history
 
@@ -94,7 +94,7 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin,
     r = np.empty(d)
     inv = inverse_sides(box, periodic)
     inner = 0.0
-    walled = not periodic.all()
+    walled = has_walls(periodic)
     for step in range(n_steps + 1):
         inner = np.inf
         force[:, :] = 0.0

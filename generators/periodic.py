@@ -13,7 +13,7 @@ from numba import njit
 from calippso import periodic
 
 __all__ = ["image_component", "wrap_coordinate", "wrap_into_box", "inverse_sides",
-           "all_periodic"]
+           "all_periodic", "has_walls"]
 
 image_component = njit(cache=True, inline="always")(periodic.image_component)
 wrap_coordinate = njit(cache=True, inline="always")(periodic.wrap_coordinate)
@@ -41,6 +41,22 @@ def inverse_sides(box: np.ndarray, periodic: np.ndarray) -> np.ndarray:
         if periodic[mu]:
             inverse[mu] = 1.0 / box[mu]
     return inverse
+
+
+@njit(cache=True)
+def has_walls(periodic: np.ndarray) -> bool:
+    """Whether some axis is not periodic, as a plain loop (inside a parallel=True caller,
+    `periodic.all()` may become a threaded reduction, dearer than the whole test).
+
+    Parameters
+    ----------
+    periodic : ndarray, shape (d,), bool
+        Periodic axes.
+    """
+    for mu in range(periodic.shape[0]):
+        if not periodic[mu]:
+            return True
+    return False
 
 
 @njit(cache=True)
