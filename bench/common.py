@@ -39,8 +39,9 @@ def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0,
     seed : int
         Seed of the trial centres.
     boundaries : Boundaries, optional
-        Flat walls (`Boundaries.walls`): along their axes a centre lies in [1/2, L − 1/2].
-        Periodic by default.
+        Flat walls (`Boundaries.walls`): along their axes a centre lies in [1/2, L − 1/2]; or
+        a cylinder (`Boundaries.cylinder`): a centre lies inside its circle, and `phi` is the
+        fraction of the cylinder's volume. Periodic by default.
     sides : ndarray, shape (d,), optional
         Box sides in proportion (scaled to reach `phi`); a cube by default.
     diameters : ndarray, shape (n,), optional
@@ -60,14 +61,19 @@ def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0,
     rng = np.random.default_rng(seed)
     shape = np.ones(d) if sides is None else np.asarray(sides, float) / np.prod(sides) ** (1 / d)
     sizes = np.ones(n) if diameters is None else np.asarray(diameters, float) / np.mean(diameters)
-    box = shape * (float(np.sum(ball_volume(d, sizes / 2))) / phi) ** (1.0 / d)
+    container = 1.0 if boundaries is None else boundaries.volume(shape)
+    box = shape * (float(np.sum(ball_volume(d, sizes / 2))) / (phi * container)) ** (1.0 / d)
     periodic = np.ones(d, bool) if boundaries is None else boundaries.periodic
+    plane = [] if boundaries is None else list(boundaries.cylinder_axes)
     placed = np.zeros((0, d))
     placed_sizes = np.zeros(0)
     for k in np.argsort(-sizes, kind="stable"):
         for _ in range(MAX_TRIALS):
             draw = rng.random(d)
             trial = np.where(periodic, draw * box, 0.5 * sizes[k] + draw * (box - sizes[k]))
+            if plane and np.linalg.norm(trial[plane] - 0.5 * box[plane]) > 0.5 * (
+                    box[plane[0]] - sizes[k]):
+                continue
             delta = placed - trial
             delta -= np.where(periodic, box, 0.0) * np.round(delta / box)
             if np.all(np.einsum("nd,nd->n", delta, delta) > (0.5 * (placed_sizes + sizes[k]))**2):

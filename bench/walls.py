@@ -7,19 +7,22 @@ walls, jammed by the LP loop (the stages that do not know walls yet are skipped)
 the repository root:
 
     python bench/walls.py --cases 2:128:x 2:256:x,y 3:128:x 3:256:x,y --seeds 1 2 3
+    python bench/walls.py --cases 3:256:cylinder 2:128:cylinder --seeds 1 2 3
     python bench/walls.py --slab 8 12 16 --width 6 --seeds 1 2 3 --json slab.json
 
-A case is d:N:axes. Columns: N, d, walls, seed, LPs, moves off a wall (converged
-hypostatic LPs that `jam` pushed on), wall time (s), φ_J, particle and wall contacts, stable
-particles, isostaticity gap (pair + wall contacts against d N_s + 1 − periodic axes), force
-balance, the largest |F_0 + F_L| / F_L over the walled axes (forces on the two walls of an
-axis), and the largest relative mismatch of the pressure on a wall against the virial
-L_μ F_μ = Σ_pairs f r_μ²/|r| + Σ_walls f σ_i/2.
+A case is d:N:axes (flat walls on those axes) or d:N:cylinder (a cylinder in x, y; in d = 2
+a circle). Columns: N, d, container, seed, LPs, moves off a wall (converged hypostatic LPs
+that `jam` pushed on), wall time (s), φ_J, particle and wall contacts, stable particles,
+isostaticity gap (pair + wall contacts against d N_s + 1 − zero modes), force balance, the
+net force on the walls (the largest |F_0 + F_L| / F_L over the walled axes; for a cylinder,
+|Σ f_w e_w| / Σ f_w), and the largest relative mismatch of the pressure on a wall against
+the virial: L_μ F_μ = Σ_pairs f r_μ²/|r| + Σ_walls f σ_i/2 for a flat wall, Σ_pairs f
+|r_⊥|²/|r| = Σ_cylinder f (L/2 − σ_i/2) for a cylinder.
 
-`--slab`: monodisperse spheres in d = 3 between walls at x = 0 and x = L (the values given,
-in diameters), periodic in y and z with sides `--width`; the same box fully periodic as the
-reference of the same protocol. φ_J(L) is fitted as φ_∞ − a/L (least squares over every
-seed) and compared with the periodic mean.
+`--slab`: monodisperse spheres in d = 3 between walls at x = 0 and x = L (about the values
+given, in final mean diameters), periodic in y and z with sides `--width`; the same box
+fully periodic as the reference of the same protocol. φ_J(L) is fitted as φ_∞ − a/L (least
+squares over every isostatic walled packing) and compared with the periodic mean.
 """
 
 from __future__ import annotations
@@ -59,6 +62,16 @@ def checks(result) -> dict:
                              * packing.diameters[particle[wall // 2 == axis]] / 2))
         measured = result.wall_pressures[axis] * packing.volume
         virial = max(virial, float(np.max(np.abs(measured / expected - 1))))
+    if packing.boundaries.cylinder_axes:
+        plane = list(packing.boundaries.cylinder_axes)
+        offset = packing.positions[particle][:, plane] - 0.5 * packing.box[plane]
+        inward = -offset / np.linalg.norm(offset, axis=1)[:, None]
+        net = np.linalg.norm(np.sum(result.wall_forces[:, None] * inward, axis=0))
+        mismatch = max(mismatch, float(net / result.wall_forces.sum()))
+        expected = np.sum(result.wall_forces * (0.5 * packing.box[plane[0]]
+                                                - packing.diameters[particle] / 2))
+        measured = np.sum(result.forces * np.sum(vectors[:, plane] ** 2, axis=1) / distances)
+        virial = max(virial, abs(measured / expected - 1))
     return {"n": packing.n, "d": packing.d, "walls": packing.boundaries.describe(),
             "lps": result.iterations,
             "moves": sum("moved out of it" in note for note in result.notes),
@@ -75,10 +88,11 @@ def run_cases(cases: list[str], seeds: list[int]) -> list[dict]:
     for case in cases:
         d, n, axes = case.split(":")
         d, n = int(d), int(n)
+        boundaries = (Boundaries.cylinder(d, (0, 1)) if axes == "cylinder"
+                      else Boundaries.walls(d, axes.split(",")))
         for seed in seeds:
             sizes = np.where(np.arange(n) < n // 2, 1.0, BIDISPERSE_RATIO) if d == 2 else None
-            start = random_sequential_addition(n, d, START_PHI[d], seed,
-                                               Boundaries.walls(d, axes.split(",")),
+            start = random_sequential_addition(n, d, START_PHI[d], seed, boundaries,
                                                diameters=sizes)
             row = checks(calippso.jam(start)) | {"seed": seed}
             rows.append(row)
@@ -100,8 +114,8 @@ def run_slab(lengths: list[float], width: float, seeds: list[int]) -> list[dict]
                 boundaries = Boundaries.walls(3, "x") if walled else None
                 start = random_sequential_addition(n, 3, START_PHI[3], seed, boundaries, sides)
                 result = calippso.jam(start)
-                row = checks(result) | {"seed": seed, "length": float(result.packing.box[0]),
-                                        "walled": walled}
+                length = float(result.packing.box[0] / result.packing.mean_diameter)
+                row = checks(result) | {"seed": seed, "length": length, "walled": walled}
                 rows.append(row)
                 print(f"L = {row['length']:6.2f} {'walls' if walled else 'periodic':8s} "
                       f"N = {n:5d} seed {seed}: phi_J {row['phi']:.5f}, {row['lps']} LPs, "
