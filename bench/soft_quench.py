@@ -118,17 +118,19 @@ def kernel_rows(n: int, d: int, seed: int, rungs: int) -> list[dict]:
     memory_x = rng.random((2, _lbfgs.HISTORY, x.size))
     memory_u = rng.random((4, _lbfgs.HISTORY))
     radii = system.scale * s
-    csr = verlet_lists(x, box, radii, system.skin)
+    periodic = system.periodic             # every axis periodic: no wall or cylinder terms
+    csr = verlet_lists(x, box, radii, system.skin, periodic)
     kernels = {
         "harmonic_forces": lambda: _fire.harmonic_forces(x, v, s, system.scale, box, *lists,
-                                                         pair_force, f, partial),
+                                                         pair_force, f, partial, periodic,
+                                                         system.circle),
         "fire _move": lambda: _fire._move(y, v, f, x, 1e-9, 0.9, 0.0, False),
         "lbfgs _direction": lambda: _lbfgs._direction(f, 0.0, memory_x, memory_u,
                                                       _lbfgs.HISTORY, 0, v),
         "lbfgs _slope": lambda: _lbfgs._slope(f, 0.0, v, 0.0),
         "lbfgs _place": lambda: _lbfgs._place(y, x, v, 1e-9, x),
         "cell_order": lambda: _fire.cell_order(x, box, radii.max() + system.skin),
-        "verlet_lists": lambda: verlet_lists(x, box, radii, system.skin),
+        "verlet_lists": lambda: verlet_lists(x, box, radii, system.skin, periodic),
         "pair_lists": lambda: _fire.pair_lists(*csr),
     }
     threads = numba.get_num_threads()

@@ -95,11 +95,12 @@ def check_boundaries(boundaries, d: int, generator: str, kinds: tuple[str, ...])
 
 
 def wall_gaps(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-              periodic: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Relative gap of every particle to each flat wall: h = δ/(σ_i/2) − 1, δ the centre's
+              periodic: np.ndarray, cylinder: tuple[int, ...] = ()
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Relative gap of every particle to each wall: h = δ/(σ_i/2) − 1, δ the centre's
     distance to the wall (the wall as a partner at contact distance σ_i/2, as in
     `calippso.walls`; a shrink of all diameters by c turns h into (1 + h)/c − 1, as for a
-    pair).
+    pair). For a cylinder δ = L/2 − ρ, ρ the centre's distance from its axis.
 
     Parameters
     ----------
@@ -108,19 +109,31 @@ def wall_gaps(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
     diameters : ndarray, shape (N,)
     box : ndarray, shape (d,)
     periodic : ndarray, shape (d,), bool
-        Periodic axes; the others have walls at 0 (wall 2μ) and L_μ (wall 2μ + 1).
+        Periodic axes; the others have walls at 0 (wall 2μ) and L_μ (wall 2μ + 1), except
+        the cylinder's.
+    cylinder : tuple of int
+        The two axes (a, b) of a cylinder (wall 2d, `calippso.walls.cylinder_wall`), or ().
 
     Returns
     -------
-    particle, wall : ndarray of int64, shape (2 N W,)
-        Every particle against each of the 2 W walls (W walled axes), particle-major.
-    gaps : ndarray, shape (2 N W,)
+    particle, wall : ndarray of int64, shape (N (2 W + C),)
+        Every particle against each of the 2 W flat walls (W walled axes), then the
+        cylinder (C = 1 with one, else 0), particle-major.
+    gaps : ndarray, shape (N (2 W + C),)
     """
-    axes = np.flatnonzero(~np.asarray(periodic, dtype=bool))
-    n = positions.shape[0]
+    n, d = positions.shape
+    flat = ~np.asarray(periodic, dtype=bool)
+    flat[list(cylinder)] = False
+    axes = np.flatnonzero(flat)
     distances = np.stack([positions[:, axes], box[axes] - positions[:, axes]], axis=2)
-    gaps = (2.0 * distances / diameters[:, None, None] - 1.0).reshape(n, -1)
     walls = (2 * axes[:, None] + np.arange(2)[None, :]).reshape(-1)
+    gaps = (2.0 * distances / diameters[:, None, None] - 1.0).reshape(n, -1)
+    if cylinder:
+        half = 0.5 * box[cylinder[0]]
+        offset = positions[:, list(cylinder)] - half
+        rho = np.sqrt(np.einsum("nk,nk->n", offset, offset))
+        gaps = np.concatenate([gaps, (2.0 * (half - rho) / diameters - 1.0)[:, None]], axis=1)
+        walls = np.append(walls, 2 * d)
     particle = np.repeat(np.arange(n, dtype=np.int64), walls.size)
     return particle, np.tile(walls.astype(np.int64), n), gaps.reshape(-1)
 
@@ -130,9 +143,10 @@ ROUNDOFF_MARGIN = 1e-15
 
 
 def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                            periodic: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+                            periodic: np.ndarray | None = None,
+                            cylinder: tuple[int, ...] = ()) -> tuple[np.ndarray, float]:
     """Scale all diameters down by the (tiny) relative overlap left by round-off, if any,
-    between two particles or a particle and a flat wall.
+    between two particles or a particle and a wall (flat or the cylinder's).
 
     The check is an independent periodic KD-tree search (`calippso.neighbors.min_gap`). The
     factor is 1 − (−h + `ROUNDOFF_MARGIN`), not `calippso.neighbors.shrink_to_margin`'s
@@ -150,6 +164,8 @@ def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray, box: n
     periodic : ndarray, shape (d,), bool, optional
         Periodic axes; flat walls at 0 and L_μ along the others (`wall_gaps`). None: every
         axis periodic.
+    cylinder : tuple of int
+        The two axes of a cylinder (among the non-periodic ones), or ().
 
     Returns
     -------
@@ -162,7 +178,8 @@ def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray, box: n
 
     gap, _ = min_gap(positions, diameters, box, periodic)
     if periodic is not None and not np.all(periodic):
-        gap = min(gap, float(wall_gaps(positions, diameters, box, periodic)[2].min()))
+        gap = min(gap, float(wall_gaps(positions, diameters, box, periodic,
+                                       cylinder)[2].min()))
     if gap >= 0:
         return diameters, 0.0
     correction = -gap + ROUNDOFF_MARGIN

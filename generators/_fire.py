@@ -12,6 +12,15 @@ it has the energy of a pair with that overlap, V = ε/2 ((σ_i/2 − δ)/σ_i)²
 (σ_i/2 − δ)/σ_i² along the wall's inward normal. Its virial term is that force × δ, so that
 the pressure stays −∂E/∂ ln V under an affine compression of the box, walls included.
 
+In a cylinder (two axes a, b with equal sides L, `cylinder` = (a, b); no minimum image along
+either) a particle whose centre is ρ_i from the cylinder's axis (the line through
+(L/2, L/2)) overlaps the curved wall by δ = ρ_i + σ_i/2 − L/2 when positive: the energy
+ε/2 (δ/σ_i)², the force δ/σ_i² along −ρ̂ in the circle's plane, and the virial term that
+force × (L/2 − ρ_i), the centre's distance to the wall along the radius. That is
+∂E/∂ ln a at fixed centres (E depends on (ρ_i − L/2)/σ_i), as for a flat wall, so the
+enthalpy's gradient in ln a stays exact. The volume of the box is then the cylinder's,
+π L²/4 × the periodic sides (`container_volume`).
+
 FIRE 2.0 (Guénolé et al., Comput. Mater. Sci. 175, 109584 (2020)): semi-implicit Euler
 steps, velocity mixing v ← (1 − α) v + α |v| F̂, a backstep x ← x − Δt v / 2 with v ← 0 when
 the power F·v turns non-positive, and no Δt decrease during the first `N_DELAY` steps.
@@ -25,7 +34,8 @@ from numba import njit, prange
 from .periodic import has_walls, image_component, inverse_sides
 
 __all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "contact_pairs",
-           "box_volume", "CONVERGED", "REBUILD", "OUT_OF_STEPS"]
+           "box_volume", "container_volume", "NO_CYLINDER", "CONVERGED", "REBUILD",
+           "OUT_OF_STEPS"]
 
 #: FIRE parameters of Bitzek et al., PRL 97, 170201 (2006): steps of positive power before Δt
 #: may grow (also the initial delay of FIRE 2.0), growth and cut factors of Δt, initial
@@ -44,6 +54,9 @@ SCALE_MASS = 1.0
 
 #: Return codes of `fire_run`.
 CONVERGED, REBUILD, OUT_OF_STEPS = 0, 1, 2
+
+#: The `cylinder` argument of a box without a cylinder (otherwise its two axes (a, b)).
+NO_CYLINDER = (-1, -1)
 
 
 @njit(cache=True)
@@ -231,18 +244,19 @@ def _pairs_3d(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray, inv: 
 
 @njit(cache=True)
 def _walls(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
-           periodic: np.ndarray, f: np.ndarray, lo: int, hi: int, sums: np.ndarray) -> None:
-    """Wall terms of pass 1 for particles lo ≤ i < hi, after `_pairs`: each particle closer
-    than its radius to a wall (along an axis that is not periodic) gets the wall's force in
-    f[i], and sums[4:8] gain the force, its virial (force × distance to the wall), the
-    overlap count and the energy, as a pair would."""
+           periodic: np.ndarray, cylinder: tuple[int, int], f: np.ndarray, lo: int, hi: int,
+           sums: np.ndarray) -> None:
+    """Flat-wall terms of pass 1 for particles lo ≤ i < hi, after `_pairs`: each particle
+    closer than its radius to a wall (along an axis that is neither periodic nor one of the
+    `cylinder`'s) gets the wall's force in f[i], and sums[4:8] gain the force, its virial
+    (force × distance to the wall), the overlap count and the energy, as a pair would."""
     d = x.shape[1]
     force_sum = virial = overlaps = energy = 0.0
     for i in range(lo, hi):
         sigma = scale * s[i]
         radius = 0.5 * sigma
         for mu in range(d):
-            if periodic[mu]:
+            if periodic[mu] or mu == cylinder[0] or mu == cylinder[1]:
                 continue
             for side in range(2):          # the wall at 0 (normal +e_μ), then at L_μ
                 distance = x[i, mu] if side == 0 else box[mu] - x[i, mu]
@@ -254,6 +268,39 @@ def _walls(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
                     virial += magnitude * distance
                     overlaps += 1.0
                     energy += (magnitude * sigma) ** 2
+    sums[4] += force_sum
+    sums[5] += virial
+    sums[6] += overlaps
+    sums[7] += 0.5 * energy
+
+
+@njit(cache=True)
+def _cylinder(x: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
+              cylinder: tuple[int, int], f: np.ndarray, lo: int, hi: int,
+              sums: np.ndarray) -> None:
+    """Cylinder terms of pass 1 for particles lo ≤ i < hi, after `_pairs`: a particle whose
+    centre is ρ from the axis of the cylinder (axes a, b = `cylinder`, diameter L = box[a])
+    overlaps it by δ = ρ + σ_i/2 − L/2 when positive, and gets the force δ/σ_i² along −ρ̂ in
+    f[i]; sums[4:8] gain the force, its virial (force × (L/2 − ρ)), the overlap count and the
+    energy (δ/σ_i)²/2."""
+    a, b = cylinder
+    half = 0.5 * box[a]
+    force_sum = virial = overlaps = energy = 0.0
+    for i in range(lo, hi):
+        sigma = scale * s[i]
+        offset_a = x[i, a] - half
+        offset_b = x[i, b] - half
+        rho = np.sqrt(offset_a * offset_a + offset_b * offset_b)
+        overlap = rho + 0.5 * sigma - half
+        if overlap > 0.0:          # then ρ > (L − σ_i)/2 > 0: ρ̂ is defined
+            magnitude = overlap / (sigma * sigma)
+            factor = magnitude / rho
+            f[i, a] -= factor * offset_a
+            f[i, b] -= factor * offset_b
+            force_sum += magnitude
+            virial += magnitude * (half - rho)
+            overlaps += 1.0
+            energy += (magnitude * sigma) ** 2
     sums[4] += force_sum
     sums[5] += virial
     sums[6] += overlaps
@@ -311,7 +358,8 @@ def _gather_3d(v: np.ndarray, incoming_start: np.ndarray, incoming: np.ndarray,
 def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, box: np.ndarray,
                     first: np.ndarray, second: np.ndarray, incoming_start: np.ndarray,
                     incoming: np.ndarray, pair_force: np.ndarray, f: np.ndarray,
-                    partial: np.ndarray, periodic: np.ndarray):
+                    partial: np.ndarray, periodic: np.ndarray,
+                    cylinder: tuple[int, int] = NO_CYLINDER):
     """Harmonic forces into `f` (in place) and the sums FIRE and the pressure need.
 
     Two parallel passes over blocks of particles: the first computes each pair once (as the
@@ -319,7 +367,8 @@ def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, b
     stored forces of the pairs where a particle is the higher one. Every thread writes only
     its own rows, and each pair costs one evaluation. d = 3 has its own loops (`_pairs_3d`,
     `_gather_3d`); other dimensions share `_pairs` and `_gather`. With walls, the first pass
-    adds the wall forces (`_walls`); a periodic box skips that loop.
+    adds the wall forces (`_walls`, and `_cylinder` in a cylinder); a periodic box skips
+    these loops.
 
     Parameters
     ----------
@@ -339,7 +388,10 @@ def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, b
     partial : ndarray, shape (blocks, N_SUMS)
         Work array (`work_array`).
     periodic : ndarray, shape (d,), bool
-        Periodic axes; along the others the box is closed by flat walls at 0 and L_μ.
+        Periodic axes; along the others the box is closed by flat walls at 0 and L_μ, or by
+        the cylinder.
+    cylinder : tuple of int, optional
+        The two axes (a, b) of a cylinder (not periodic, box[a] = box[b]), or `NO_CYLINDER`.
 
     Returns
     -------
@@ -349,7 +401,8 @@ def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, b
         max_i |F_i|².
     force_sum, virial : float
         Σ over overlapping pairs (and particle–wall overlaps) of f_ij and of f_ij r_ij (for
-        a wall: the force × the centre's distance to the wall).
+        a flat wall: the force × the centre's distance to the wall; for the cylinder: the
+        force × (L/2 − ρ)).
     overlaps : int
         Number of overlapping pairs and particle–wall overlaps.
     energy : float
@@ -366,7 +419,9 @@ def harmonic_forces(x: np.ndarray, v: np.ndarray, s: np.ndarray, scale: float, b
         else:
             _pairs(x, s, scale, box, inv, first, second, pair_force, f, lo, hi, partial[b])
         if walled:
-            _walls(x, s, scale, box, periodic, f, lo, hi, partial[b])
+            _walls(x, s, scale, box, periodic, cylinder, f, lo, hi, partial[b])
+            if cylinder[0] >= 0:
+                _cylinder(x, s, scale, box, cylinder, f, lo, hi, partial[b])
     for b in prange(blocks):
         lo, hi = b * BLOCK, min(n, (b + 1) * BLOCK)
         if d == 3:
@@ -417,6 +472,16 @@ def box_volume(box: np.ndarray) -> float:
     return volume
 
 
+@njit(cache=True)
+def container_volume(box: np.ndarray, cylinder: tuple[int, int]) -> float:
+    """Volume of the container: `box_volume`, times π/4 in a cylinder (its circle of
+    diameter L instead of the square L², `calippso.boundaries.Boundaries.volume`)."""
+    volume = box_volume(box)
+    if cylinder[0] >= 0:
+        volume *= np.pi / 4.0
+    return volume
+
+
 # fire_run calls the parallel `harmonic_forces`. Compiled with parallel=True itself (it has
 # no prange), it loads safely from Numba's on-disk cache even when a new argument type makes
 # it compile anew; a cached serial caller of a parallel function crashes (numba issue #8578).
@@ -425,7 +490,8 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
              first: np.ndarray, second: np.ndarray, incoming_start: np.ndarray,
              incoming: np.ndarray, x_built: np.ndarray, skin: float, scale_built: float,
              state: np.ndarray, dt_max: float, dt_min: float, tolerance: float,
-             force_floor: float, target: float, max_steps: int, periodic: np.ndarray):
+             force_floor: float, target: float, max_steps: int, periodic: np.ndarray,
+             cylinder: tuple[int, int]):
     """FIRE 2.0 minimisation of the enthalpy H = E + p* Ṽ at pressure p* = `target`, until
     converged, a list rebuild or the step limit.
 
@@ -463,7 +529,11 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
     max_steps : int
         Steps allowed in this call.
     periodic : ndarray, shape (d,), bool
-        Periodic axes; flat walls at 0 and L_μ along the others (`harmonic_forces`).
+        Periodic axes; flat walls at 0 and L_μ along the others (`harmonic_forces`), or the
+        cylinder.
+    cylinder : tuple of int
+        The cylinder's two axes, or `NO_CYLINDER`; V is then the cylinder's volume
+        (`container_volume`).
 
     Returns
     -------
@@ -478,7 +548,7 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
         Largest distance a particle moved since the list build.
     """
     n, d = x.shape
-    volume = box_volume(box)
+    volume = container_volume(box, cylinder)
     root_mass = np.sqrt(SCALE_MASS * n * d)
     largest = s.max()
     partial = work_array(n)
@@ -488,7 +558,7 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
     scale = np.exp(log_scale)
     power, force2, speed2, largest2, force_sum, virial, overlaps, _ = harmonic_forces(
         x, v, s, scale, box, first, second, incoming_start, incoming, pair_force, f, partial,
-        periodic)
+        periodic, cylinder)
     steps = 0
     drift2 = 0.0
     code = OUT_OF_STEPS
@@ -532,7 +602,7 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
             break
         power, force2, speed2, largest2, force_sum, virial, overlaps, _ = harmonic_forces(
             x, v, s, scale, box, first, second, incoming_start, incoming, pair_force, f,
-            partial, periodic)
+            partial, periodic, cylinder)
     state[0], state[1], state[2], state[3] = dt, alpha, positive, age
     state[4], state[5] = log_scale, v_scale
     return code, steps, pressure, np.sqrt(drift2)

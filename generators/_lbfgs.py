@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._fire import (CONVERGED, OUT_OF_STEPS, REBUILD, box_volume, harmonic_forces,
+from ._fire import (CONVERGED, OUT_OF_STEPS, REBUILD, container_volume, harmonic_forces,
                     work_array)
 
 __all__ = ["HISTORY", "STATE_SIZE", "lbfgs_run", "new_state"]
@@ -55,16 +55,17 @@ def new_state(log_scale: float) -> np.ndarray:
 
 @njit
 def _enthalpy(x, still, s, scale, box, first, second, incoming_start, incoming, pair_force, f,
-              partial, target, root_mass, periodic):
+              partial, target, root_mass, periodic, cylinder):
     """Forces into `f`; H, ∂H/∂u, max |F_i|², Σ f_ij over overlaps, pressure, overlaps.
 
     `still` is a zero array of the shape of x (the velocities `harmonic_forces` reads);
-    `periodic` the periodic axes (walls along the others)."""
+    `periodic` the periodic axes (walls along the others), `cylinder` the cylinder's axes
+    or `_fire.NO_CYLINDER`."""
     d = x.shape[1]
-    volume = box_volume(box) / scale**d
+    volume = container_volume(box, cylinder) / scale**d
     _, _, _, largest2, force_sum, virial, overlaps, energy = harmonic_forces(
         x, still, s, scale, box, first, second, incoming_start, incoming, pair_force, f,
-        partial, periodic)
+        partial, periodic, cylinder)
     enthalpy = energy + target * volume
     gradient_u = (virial - d * volume * target) / root_mass
     pressure = virial / (d * volume)
@@ -196,7 +197,7 @@ def _slope(f, gradient_u, p, p_u):
 @njit(parallel=True, cache=True)
 def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, skin,
               scale_built, state, memory_x, memory_u, tolerance, force_floor, target,
-              max_steps, periodic):
+              max_steps, periodic, cylinder):
     """L-BFGS minimisation of H = E + p* Ṽ at p* = `target`, until converged, a list rebuild
     or the force-evaluation limit.
 
@@ -233,7 +234,10 @@ def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, sk
     max_steps : int
         Force evaluations allowed in this call (a step in progress finishes its line search).
     periodic : ndarray, shape (d,), bool
-        Periodic axes; flat walls at 0 and L_μ along the others (`_fire.harmonic_forces`).
+        Periodic axes; flat walls at 0 and L_μ along the others (`_fire.harmonic_forces`),
+        or the cylinder.
+    cylinder : tuple of int
+        The cylinder's two axes, or `_fire.NO_CYLINDER` (`_fire.fire_run`).
 
     Returns
     -------
@@ -261,7 +265,7 @@ def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, sk
     scale = np.exp(log_scale)
     enthalpy, gradient_u, largest2, force_sum, pressure, overlaps = _enthalpy(
         x, still, s, scale, box, first, second, incoming_start, incoming, pair_force, f,
-        partial, target, root_mass, periodic)
+        partial, target, root_mass, periodic, cylinder)
     # Only a fresh minimisation counts this evaluation: after a pause or a rebuild it repeats
     # the last one, and the counts do not depend on where the pauses fall.
     steps = 1 if state[EVALUATIONS] == 0.0 else 0
@@ -313,7 +317,7 @@ def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, sk
             log_scale, scale = trial_log_scale, trial_scale
             enthalpy, gradient_u, largest2, force_sum, pressure, overlaps = _enthalpy(
                 x, still, s, scale, box, first, second, incoming_start, incoming, pair_force,
-                f, partial, target, root_mass, periodic)
+                f, partial, target, root_mass, periodic, cylinder)
             steps += 1
             slope = _slope(f, gradient_u, p, p_u)
             decrease = enthalpy <= enthalpy0 + ARMIJO * alpha * slope0 + roundoff
@@ -356,7 +360,7 @@ def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, sk
             scale = np.exp(log_scale)
             enthalpy, gradient_u, largest2, force_sum, pressure, overlaps = _enthalpy(
                 x, still, s, scale, box, first, second, incoming_start, incoming, pair_force,
-                f, partial, target, root_mass, periodic)
+                f, partial, target, root_mass, periodic, cylinder)
             steps += 1
             stored = 0
             continue

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calippso.boundaries import PERIODIC, WALLS, Boundaries
+from calippso.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
 from calippso.packing import Packing, ball_volume
 from calippso.rattlers import remove_rattlers
 
@@ -87,12 +87,12 @@ MINIMISERS = ("auto", "fire", "lbfgs")
 #: each L-BFGS evaluation costs 1.3–1.7 FIRE steps (docs/generators.md, Run time).
 LBFGS_FROM_DIMENSION = 4
 #: The boundary kinds `soft_quench` handles.
-BOUNDARY_KINDS = (PERIODIC, WALLS)
+BOUNDARY_KINDS = (PERIODIC, WALLS, CYLINDER)
 
 
 class _SoftSpheres(Resumable):
-    """Harmonic spheres in a box, periodic or closed by flat walls along each axis, kept
-    sorted by cell for cache locality.
+    """Harmonic spheres in a box, periodic or closed by flat walls along each axis, or in a
+    cylinder, kept sorted by cell for cache locality.
 
     Parameters
     ----------
@@ -106,8 +106,10 @@ class _SoftSpheres(Resumable):
     minimiser : str
         "fire" (`_fire.fire_run`) or "lbfgs" (`_lbfgs.lbfgs_run`).
     periodic : ndarray, shape (d,), bool, optional
-        Periodic axes; flat harmonic walls at 0 and L_μ along the others (`_fire`). None:
-        every axis periodic.
+        Periodic axes; flat harmonic walls at 0 and L_μ along the others (`_fire`) except
+        the cylinder's. None: every axis periodic.
+    cylinder : tuple of int, optional
+        The two axes of a harmonic cylinder (`_fire.harmonic_forces`), or ().
 
     Attributes
     ----------
@@ -125,11 +127,14 @@ class _SoftSpheres(Resumable):
 
     def __init__(self, positions: np.ndarray, nominal: np.ndarray, box: np.ndarray,
                  skin: float, minimiser: str = "fire",
-                 periodic: np.ndarray | None = None) -> None:
+                 periodic: np.ndarray | None = None, cylinder: tuple[int, ...] = ()) -> None:
         n, d = positions.shape
         self.box = box
         self.periodic = all_periodic(d) if periodic is None else np.asarray(periodic,
                                                                             dtype=np.bool_)
+        self.cylinder = tuple(int(axis) for axis in cylinder)
+        # (the kernels' form: the two axes, or _fire.NO_CYLINDER)
+        self.circle = self.cylinder if self.cylinder else _fire.NO_CYLINDER
         self.max_skin = skin
         self.skin = skin
         self.x = positions.copy()
@@ -140,7 +145,8 @@ class _SoftSpheres(Resumable):
         self.scale = 1.0
         self.steps = 0
         self.rebuilds = 0
-        self.phi_unit = float(np.sum(ball_volume(d, nominal / 2))) / float(np.prod(box))
+        volume = float(np.prod(box)) * (np.pi / 4 if self.cylinder else 1.0)
+        self.phi_unit = float(np.sum(ball_volume(d, nominal / 2))) / volume
         self.dt0 = DT0_3D * np.sqrt(3.0 / d) * float(nominal.min())
         self.force_floor = ROUNDOFF_FORCE * np.finfo(np.float64).eps * float(box.max())
         self.x_built = self.x.copy()
@@ -290,12 +296,12 @@ class _SoftSpheres(Resumable):
             return _lbfgs.lbfgs_run(
                 self.x, self.f, self.s, self.box, *self.lists, self.x_built, self.skin,
                 self.scale_built, self.method, self.memory_x, self.memory_u, tolerance,
-                self.force_floor, pressure, max_steps, self.periodic)
+                self.force_floor, pressure, max_steps, self.periodic, self.circle)
         return _fire.fire_run(
             self.x, self.v, self.f, self.s, self.box, *self.lists, self.x_built,
             self.skin, self.scale_built, self.method, DT_MAX_FACTOR * self.dt0,
             _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure,
-            max_steps, self.periodic)
+            max_steps, self.periodic, self.circle)
 
     def pairs_below(self, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs with relative gap |r|/σ − 1 below `gap`, in original particle indices,
@@ -310,9 +316,10 @@ class _SoftSpheres(Resumable):
 
     def walls_below(self, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Particle–wall pairs with relative gap δ/(σ_i/2) − 1 below `gap` (`_checks.wall_gaps`;
-        walls 2μ at 0, 2μ + 1 at L_μ), in original particle indices, sorted by particle then
-        wall, with their gaps; empty in a periodic box."""
-        particle, wall, gaps = wall_gaps(self.x, self.scale * self.s, self.box, self.periodic)
+        walls 2μ at 0, 2μ + 1 at L_μ, 2d the cylinder), in original particle indices, sorted
+        by particle then wall, with their gaps; empty in a periodic box."""
+        particle, wall, gaps = wall_gaps(self.x, self.scale * self.s, self.box, self.periodic,
+                                         self.cylinder)
         below = gaps < gap
         particle, wall, gaps = self.ids[particle[below]], wall[below], gaps[below]
         order = np.lexsort((wall, particle))
@@ -328,8 +335,10 @@ class _SoftSpheres(Resumable):
 
     def isostatic_count(self, stable: int) -> int:
         """Contacts (pairs and walls) of an isostatic network of `stable` particles:
-        d N_s + 1 − (periodic axes), which is d (N_s − 1) + 1 in a periodic box."""
-        return self.x.shape[1] * stable + 1 - int(np.count_nonzero(self.periodic))
+        d N_s + 1 − (zero modes: the periodic axes, and the rotation about a cylinder's
+        axis), which is d (N_s − 1) + 1 in a periodic box."""
+        return (self.x.shape[1] * stable + 1 - int(np.count_nonzero(self.periodic))
+                - (1 if self.cylinder else 0))
 
     def stable_network(self) -> tuple[np.ndarray, int]:
         """The overlap network without rattlers (recursively; a wall contact counts for its
@@ -453,12 +462,15 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         (`steps` then counts force evaluations); "auto" takes L-BFGS in d ≥ 4 and FIRE in
         d = 2, 3. Both stop on the same convergence test.
     boundaries : calippso.Boundaries, optional
-        The container: periodic along every axis (None, the default) or flat walls at 0 and
-        L along some axes (`Boundaries.walls`; a cylinder is refused). A particle closer to
-        a wall than its radius σ_i/2 overlaps it by σ_i/2 − δ and has the energy of a pair
-        with that overlap; its virial (force × δ) is in the pressure. The compression grows
-        the diameters in a fixed box, which is the box shrinking affinely, walls and all.
-        Along a walled axis there is no minimum image and no wrap.
+        The container: periodic along every axis (None, the default), flat walls at 0 and
+        L along some axes (`Boundaries.walls`), or a cylinder (`Boundaries.cylinder`). A
+        particle closer to a wall than its radius σ_i/2 overlaps it by σ_i/2 − δ and has the
+        energy of a pair with that overlap; its virial (force × δ) is in the pressure. In a
+        cylinder of diameter L, δ = L/2 − ρ_i (ρ_i: the centre's distance from the
+        cylinder's axis), the force points to the axis, and the pressure is over the
+        cylinder's volume. The compression grows the diameters in a fixed box, which is the
+        box shrinking affinely, walls and all. Along a walled or a cylinder's axis there is
+        no minimum image and no wrap.
 
     Returns
     -------
@@ -486,18 +498,19 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         With walls the packing carries the boundaries and lies inside its container;
         `contacts` holds particle pairs only (the stable particles are found with the wall
         contacts counted), and ``wall_contacts`` (particle, wall) pairs, walls 2μ at 0 and
-        2μ + 1 at L_μ, shape (K, 2), sorted, with ``wall_overlaps`` (1 − δ/(σ_i/2) of each,
-        shape (K,)), hold the stable particles' overlaps with the walls before the shrink;
-        ``isostaticity_gap`` is then N_c − (d N_s + 1 − periodic axes) with N_c counting
-        both. Periodic: both empty.
+        2μ + 1 at L_μ, 2d the cylinder (`calippso.walls.cylinder_wall`), shape (K, 2),
+        sorted, with ``wall_overlaps`` (1 − δ/(σ_i/2) of each, shape (K,)), hold the stable
+        particles' overlaps with the walls before the shrink; ``isostaticity_gap`` is then
+        N_c − (d N_s + 1 − zero modes) with N_c counting both, the zero modes being the
+        periodic axes and, in a cylinder, the rotation about its axis. Periodic: both
+        empty.
 
     Raises
     ------
     ValueError
         On non-positive diameters, d < 2, phi_start outside (0, 1), non-positive pressure,
-        tolerance or skin, a non-positive max_steps, too few particles for the box, a
-        cylinder, or a checkpoint file that belongs to another run (one line naming the
-        file).
+        tolerance or skin, a non-positive max_steps, too few particles for the box, or a
+        checkpoint file that belongs to another run (one line naming the file).
     """
     wall = time.perf_counter()
     diameters = check_diameters(diameters)
@@ -529,7 +542,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     nominal = diameters / mean
     _check_box(box, nominal, skin, phi_start, PHI_START_FACTOR * typical, boundaries.periodic)
     system = _SoftSpheres(start.positions / mean, nominal, box, skin, minimiser,
-                          boundaries.periodic)
+                          boundaries.periodic, boundaries.cylinder_axes)
     run = _Run(_pressure_ladder(TARGET_AIM * target_pressure), force_tolerance, max_steps)
     earlier_wall = 0.0
     saved = saver.load()
@@ -675,7 +688,8 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float,
     factor = mean / (system.scale * shrink)
     positions = system.positions() * factor
     box = system.box * factor
-    sizes, correction = remove_roundoff_overlap(positions, diameters, box, boundaries.periodic)
+    sizes, correction = remove_roundoff_overlap(positions, diameters, box, boundaries.periodic,
+                                                boundaries.cylinder_axes)
     packing = Packing(positions, sizes, box, boundaries).wrapped()
     return GenerationResult(
         packing=packing, reduced_pressure=float("nan"), steps=system.steps,

@@ -1,0 +1,275 @@
+"""Generators in a cylinder: the soft quench (a harmonic curved wall). Each packing lies
+inside its cylinder, overlaps nothing, is not wrapped along the circle's axes, and reaches a
+density that makes sense; the kernel's cylinder terms are checked against the energy they
+derive from, and `calippso.jam` certifies a quench."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import calippso
+import generators
+from calippso import Boundaries
+from calippso.neighbors import min_gap
+from calippso.walls import cylinder_wall
+from generators import diameters as dist
+
+#: Relative overlap allowed between two particles or a particle and the cylinder
+#: (round-off), × the diameter.
+OVERLAP_TOLERANCE = 1e-9
+
+#: (d, diameters) of the cylinder runs: bidisperse discs in a circle (1:1.4, which do not
+#: crystallise) and equal spheres in a cylinder along z.
+CASES = {"d2": (2, dist.bidisperse(128, 1.4)),
+         "d3": (3, dist.monodisperse(128))}
+
+#: Bands of the jammed-ish density of a quench of N = 128 in a cylinder: below the periodic
+#: value (0.84 for these discs, 0.64 for spheres) by the looser layer at the curved wall
+#: (a cylinder of N = 128 equal spheres is only ~5 diameters across).
+QUENCH_PHI = {2: (0.76, 0.85), 3: (0.52, 0.63)}
+
+#: The kernel of each minimiser (module, function), for the checkpoint test.
+QUENCH_KERNELS = {"fire": ("_fire", "fire_run"), "lbfgs": ("_lbfgs", "lbfgs_run")}
+
+#: Finite-difference step of the kernel checks (mean diameters) and their tolerance.
+FD_STEP = 1e-7
+FD_RTOL = 1e-6
+
+
+def cylinder_of(d: int) -> Boundaries:
+    """The cylinder of the tests: its circle in x, y (periodic along z in d = 3)."""
+    return Boundaries.cylinder(d, ["x", "y"])
+
+
+def radial_offsets(packing) -> np.ndarray:
+    """Each centre's offset from the cylinder's axis in the circle's plane, shape (N, 2)."""
+    a, b = packing.boundaries.cylinder_axes
+    return packing.positions[:, [a, b]] - 0.5 * packing.box[[a, b]]
+
+
+def assert_inside_and_apart(packing, boundaries: Boundaries) -> None:
+    """The packing carries `boundaries`, every centre lies inside the cylinder, and no two
+    particles overlap (minimum image along the periodic axes only)."""
+    assert packing.boundaries == boundaries
+    boundaries.check(packing.positions, packing.diameters, packing.box)
+    a = boundaries.cylinder_axes[0]
+    rho = np.linalg.norm(radial_offsets(packing), axis=1)
+    clearance = 0.5 * packing.box[a] - rho - 0.5 * packing.diameters
+    assert np.all(clearance >= -OVERLAP_TOLERANCE * packing.diameters)
+    gap, overlapping = min_gap(packing.positions, packing.diameters, packing.box,
+                               packing.periodic)
+    assert overlapping == 0 or gap >= -OVERLAP_TOLERANCE
+
+
+# ------------------------------------------------------------------ the kernel
+
+
+def _energy_terms(x, s, scale, box, periodic, cylinder):
+    """Harmonic forces, virial, energy and overlaps of `_fire.harmonic_forces`."""
+    from generators import _fire
+    from generators.cells import verlet_lists
+
+    lists = _fire.pair_lists(*verlet_lists(x, box, scale * s, 0.5, periodic))
+    f = np.zeros_like(x)
+    pair_force = np.empty((lists[1].shape[0], x.shape[1]))
+    sums = _fire.harmonic_forces(x, np.zeros_like(x), s, scale, box, *lists, pair_force, f,
+                                 _fire.work_array(x.shape[0]), periodic, cylinder)
+    return f, sums[5], sums[7], sums[6]
+
+
+#: Four particles in a cylinder of diameter L = 3.6 in x, y (d = 3: periodic in z): 0 and 3
+#: overlap the curved wall, 2 overlaps 1 and 3; 1 and 2 are near the axis.
+KERNEL_X = np.array([[0.45, 1.5, 1.0], [1.5, 1.7, 1.1], [2.4, 2.2, 1.0], [3.0, 2.9, 1.2]])
+KERNEL_S = np.array([1.0, 1.0, 1.2, 0.9])
+KERNEL_BOX = np.full(3, 3.6)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_harmonic_cylinder_forces_and_virial_derive_from_the_energy(d):
+    """In a cylinder: the force is −∂E/∂x and the virial a ∂E/∂a (the pressure's conjugate
+    of the diameter scale, the centres fixed: the box shrinking affinely) to
+    finite-difference accuracy; the cylinder pushes towards its axis."""
+    periodic = np.zeros(d, dtype=bool)
+    periodic[2:] = True
+    x, s, box = KERNEL_X[:, :d].copy(), KERNEL_S, KERNEL_BOX[:d]
+    scale = 1.02
+    f, virial, energy, overlaps = _energy_terms(x, s, scale, box, periodic, (0, 1))
+    rho = np.linalg.norm(x[:, :2] - box[0] / 2, axis=1)
+    on_wall = rho + scale * s / 2 > box[0] / 2
+    assert list(np.flatnonzero(on_wall)) == [0, 3]
+    distance = np.linalg.norm(x[:, None] - x[None], axis=-1)     # no image: L > 2 r
+    overlapping_pairs = np.triu(distance < scale * (s[:, None] + s[None]) / 2, 1).sum()
+    assert overlaps == overlapping_pairs + 2
+    for i in range(4):
+        for mu in range(d):
+            moved = [x.copy(), x.copy()]
+            moved[0][i, mu] += FD_STEP
+            moved[1][i, mu] -= FD_STEP
+            derivative = (_energy_terms(moved[0], s, scale, box, periodic, (0, 1))[2]
+                          - _energy_terms(moved[1], s, scale, box, periodic, (0, 1))[2]
+                          ) / (2 * FD_STEP)
+            assert f[i, mu] == pytest.approx(-derivative, rel=FD_RTOL, abs=1e-9)
+    derivative = (_energy_terms(x, s, scale * np.exp(FD_STEP), box, periodic, (0, 1))[2]
+                  - _energy_terms(x, s, scale * np.exp(-FD_STEP), box, periodic, (0, 1))[2]
+                  ) / (2 * FD_STEP)
+    assert virial == pytest.approx(derivative, rel=FD_RTOL)
+
+
+def test_a_particle_overlapping_the_cylinder_has_the_energy_of_a_pair():
+    """A lone particle overlapping the cylinder by δ = ρ + σ/2 − L/2 has the energy (δ/σ)²/2
+    and the force δ/σ² along −ρ̂, and its virial is that force × (L/2 − ρ)."""
+    periodic = np.array([False, False, True])
+    x = np.array([[1.0, 0.8, 1.0]])
+    box = np.full(3, 3.6)
+    scale = 1.1
+    f, virial, energy, overlaps = _energy_terms(x, np.ones(1), scale, box, periodic, (0, 1))
+    offset = x[0, :2] - 1.8
+    rho = np.linalg.norm(offset)
+    delta = rho + scale / 2 - 1.8
+    assert overlaps == 1 and delta > 0
+    assert energy == pytest.approx(0.5 * (delta / scale) ** 2, rel=1e-12)
+    np.testing.assert_allclose(f[0, :2], -delta / scale ** 2 * offset / rho, rtol=1e-12)
+    assert f[0, 2] == 0.0
+    assert virial == pytest.approx(delta / scale ** 2 * (1.8 - rho), rel=1e-12)
+
+
+def test_cylinder_axes_are_not_flat_walls_nor_periodic():
+    """Along the circle's axes there are no flat walls and no periodic images: a particle
+    near a corner of the box (0.45 from x = 0) feels the cylinder's force only, and two
+    particles pressed into opposite sides of the cylinder (0.4 apart through the periodic
+    image) do not meet."""
+    periodic = np.array([False, False])
+    box = np.full(2, 3.6)
+    corner = np.array([[0.45, 0.9]])
+    f, _, _, overlaps = _energy_terms(corner, np.ones(1), 1.0, box, periodic, (0, 1))
+    offset = corner[0] - 1.8
+    rho = np.linalg.norm(offset)
+    assert overlaps == 1
+    np.testing.assert_allclose(f[0], -(rho + 0.5 - 1.8) * offset / rho, rtol=1e-12)
+    opposite = np.array([[0.2, 1.8], [3.4, 1.8]])
+    f, _, energy, overlaps = _energy_terms(opposite, np.ones(2), 1.0, box, periodic, (0, 1))
+    assert overlaps == 2
+    assert energy == pytest.approx(2 * 0.5 * (1.6 + 0.5 - 1.8) ** 2, rel=1e-12)
+    np.testing.assert_allclose(f, [[0.3, 0.0], [-0.3, 0.0]], rtol=1e-12)
+
+
+def test_wall_gaps_number_the_cylinder_2d():
+    from generators._checks import wall_gaps
+
+    x = np.array([[1.0, 0.8, 1.0], [1.8, 1.8, 0.2]])
+    particle, wall, gaps = wall_gaps(x, np.ones(2), np.full(3, 3.6),
+                                     np.array([False, False, True]), (0, 1))
+    assert list(particle) == [0, 1] and list(wall) == [cylinder_wall(3)] * 2
+    rho = np.linalg.norm(x[0, :2] - 1.8)
+    assert gaps[0] == pytest.approx(2 * (1.8 - rho) - 1, rel=1e-14)
+    assert gaps[1] == pytest.approx(2 * 1.8 - 1, rel=1e-14)
+
+
+# ------------------------------------------------------------------ the soft quench
+
+
+@pytest.fixture(scope="module")
+def quenches():
+    return {name: generators.soft_quench(sizes, d, seed=1, boundaries=cylinder_of(d))
+            for name, (d, sizes) in CASES.items()}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_quench_in_a_cylinder_is_inside_apart_and_jammed_ish(name, quenches):
+    d, sizes = CASES[name]
+    tube = cylinder_of(d)
+    result = quenches[name]
+    assert result.status.startswith("converged")
+    assert_inside_and_apart(result.packing, tube)
+    np.testing.assert_array_equal(result.packing.diameters, sizes)
+    low, high = QUENCH_PHI[d]
+    assert low < result.packing.phi < high
+    assert result.extra["isostaticity_gap"] >= 0  # walls and the rotation counted
+    assert result.contacts.shape[1] == 2 and result.contacts.max() < len(sizes)
+    particle, wall = result.extra["wall_contacts"].T
+    assert len(particle) > 0 and np.all(wall == cylinder_wall(d))
+    # the contacts touch the cylinder: ρ + σ/2 within the shrink of L/2
+    packing = result.packing
+    rho = np.linalg.norm(radial_offsets(packing)[particle], axis=1)
+    reach = (rho + packing.diameters[particle] / 2) / (packing.box[0] / 2)
+    assert np.all(np.abs(reach - 1) < 10 * result.extra["max_overlap"])
+    # the particles are in equilibrium, so the cylinder's forces on them add up to zero:
+    # each is its overlap w / (2σ) (ε = 1) along −ρ̂
+    offsets = radial_offsets(packing)[particle]
+    sigma = packing.diameters[particle] / packing.diameters.mean()
+    push = -(result.extra["wall_overlaps"] / (2 * sigma))[:, None] * offsets \
+        / np.linalg.norm(offsets, axis=1)[:, None]
+    assert np.linalg.norm(push.sum(axis=0)) < 1e-3 * np.abs(push).sum()
+
+
+def test_circle_axes_are_not_wrapped(quenches):
+    """No contact reaches through a periodic image along the circle's axes: with the
+    minimum image along the periodic axes only, every contact is at its contact distance
+    (up to the largest overlap before the shrink)."""
+    for name, result in quenches.items():
+        packing = result.packing
+        i, j = result.contacts.T
+        delta = packing.positions[i] - packing.positions[j]
+        periodic = packing.periodic
+        delta[:, periodic] -= packing.box[periodic] * np.round(delta[:, periodic]
+                                                               / packing.box[periodic])
+        sigma = (packing.diameters[i] + packing.diameters[j]) / 2
+        gaps = np.linalg.norm(delta, axis=1) / sigma - 1
+        assert np.all(np.abs(gaps) <= 10 * result.extra["max_overlap"]), name
+
+
+def test_quench_in_a_cylinder_is_certified_by_jam(quenches):
+    """The quench is a start next to its jamming point: jam certifies it isostatic, with
+    cylinder contacts, at once."""
+    result = calippso.jam(quenches["d2"].packing)
+    assert result.isostatic
+    assert result.n_wall_contacts > 0
+    assert result.iterations <= 2
+    assert result.force_balance <= 1e-12
+
+
+@pytest.mark.parametrize("minimiser", ["fire", "lbfgs"])
+def test_cylinder_quench_killed_mid_minimisation_resumes_bit_for_bit(tmp_path, monkeypatch,
+                                                                     minimiser):
+    """In a cylinder (bidisperse discs in a circle) a quench killed half-way through its
+    steps resumes from its checkpoint and ends where the uninterrupted run ends, wall
+    contacts and boundaries included; the checkpoint is refused by the periodic run."""
+    import importlib
+
+    tube = cylinder_of(2)
+    sizes = dist.bidisperse(64, 1.4)
+    reference = generators.soft_quench(sizes, 2, seed=7, minimiser=minimiser, boundaries=tube)
+    module_name, kernel = QUENCH_KERNELS[minimiser]
+    module = importlib.import_module(f"generators.{module_name}")
+    real_run, taken = getattr(module, kernel), []
+
+    class Crash(Exception):
+        """Stands in for a run killed between two steps."""
+
+    def crashing_run(*args):
+        if sum(taken) >= 0.5 * reference.steps:
+            raise Crash
+        result = real_run(*args)
+        taken.append(result[1])
+        return result
+
+    monkeypatch.setattr(module, kernel, crashing_run)
+    path = tmp_path / "cylinder.npz"
+    with pytest.raises(Crash):
+        generators.soft_quench(sizes, 2, seed=7, checkpoint=path, checkpoint_every=0,
+                               minimiser=minimiser, boundaries=tube)
+    monkeypatch.setattr(module, kernel, real_run)
+    resumed = generators.soft_quench(sizes, 2, seed=7, checkpoint=path, checkpoint_every=0,
+                                     minimiser=minimiser, boundaries=tube)
+    assert resumed.extra["resumed"]
+    np.testing.assert_array_equal(resumed.packing.positions, reference.packing.positions)
+    np.testing.assert_array_equal(resumed.packing.diameters, reference.packing.diameters)
+    np.testing.assert_array_equal(resumed.packing.box, reference.packing.box)
+    np.testing.assert_array_equal(resumed.contacts, reference.contacts)
+    np.testing.assert_array_equal(resumed.extra["wall_contacts"],
+                                  reference.extra["wall_contacts"])
+    assert (resumed.steps, resumed.status) == (reference.steps, reference.status)
+    assert resumed.packing.boundaries == tube
+    with pytest.raises(ValueError, match="differs in boundaries"):
+        generators.soft_quench(sizes, 2, seed=7, checkpoint=path, minimiser=minimiser)
