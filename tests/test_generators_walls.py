@@ -185,12 +185,6 @@ def test_quench_between_walls_is_certified_by_jam(quenches):
     assert result.iterations <= 5
 
 
-def test_quench_refuses_a_cylinder():
-    with pytest.raises(ValueError, match="soft_quench does not handle cylinder"):
-        generators.soft_quench(dist.monodisperse(64), 3,
-                               boundaries=Boundaries.cylinder(3, ["x", "y"]))
-
-
 # ------------------------------------------------------------------ Lubachevsky–Stillinger
 
 #: Reduced pressure of the walled LS runs, and the band of their densities (N = 128, a fast
