@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .periodic import has_walls, image_component, inverse_sides
+from .periodic import NO_CYLINDER, has_walls, image_component, inverse_sides
 
 __all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "contact_pairs",
            "box_volume", "container_volume", "NO_CYLINDER", "CONVERGED", "REBUILD",
@@ -54,9 +54,6 @@ SCALE_MASS = 1.0
 
 #: Return codes of `fire_run`.
 CONVERGED, REBUILD, OUT_OF_STEPS = 0, 1, 2
-
-#: The `cylinder` argument of a box without a cylinder (otherwise its two axes (a, b)).
-NO_CYLINDER = (-1, -1)
 
 
 @njit(cache=True)

@@ -18,6 +18,14 @@ Events, one per particle, kept in an indexed binary min-heap:
   σ_i/2 grows, as in a pair collision with the partner held still; the impulse 2(w − u) times
   the contact distance σ_i/2 goes into the collisional virial (the pressure on the walls,
   docs/theory.md). Its prediction is valid until particle i itself collides.
+* collision with a cylinder (two axes a, b with equal sides L, `cylinder` = (a, b), no
+  minimum image along either): with ρ the centre's offset from the cylinder's axis in the
+  circle's plane and w its velocity there, the smallest τ > 0 with
+  |ρ + w τ| = L/2 − σ_i(t + τ)/2, a quadratic in τ solved in the cancellation-free forms of
+  the pair collisions (`_cylinder_event`). The normal is −ρ̂ at contact, and the reflection,
+  the impulse and its virial term (σ_i/2, the centre's distance to the wall along the
+  radius, × the impulse: the wall's gap under an affine dilation of the box, as for a flat
+  wall) are those of a flat wall. It is wall number 2d (`calippso.walls.cylinder_wall`).
 * neighbour-list expiry: the Verlet lists hold every pair with |r_ij| < S_ij a_b + δ at the
   build (scale a_b). A pair outside the lists cannot touch while every particle has moved less
   than h(t) = (δ − s_max (a(t) − a_b))/2 since the build, so the moment a particle reaches that
@@ -33,13 +41,14 @@ import numpy as np
 from numba import njit
 
 from .cells import verlet_lists
-from .periodic import has_walls, image_component, inverse_sides, wrap_into_box
+from .periodic import NO_CYLINDER, has_walls, image_component, inverse_sides, wrap_into_box
 
 __all__ = ["run_window", "skin_length"]
 
 _NO_EVENT = -2
 _LIST_EXPIRY = -1
-#: Event partner of a collision with wall w (2μ at 0, 2μ + 1 at L_μ): _WALL − w.
+#: Event partner of a collision with wall w (2μ at 0, 2μ + 1 at L_μ, 2d the cylinder):
+#: _WALL − w.
 _WALL = -3
 
 
@@ -147,19 +156,20 @@ def _expiry_time(x, xb, v, i, c, e):
 
 
 @njit(cache=True)
-def _wall_event(i, x, v, s, box, periodic, scale, rate):
+def _wall_event(i, x, v, s, box, periodic, scale, rate, cylinder=NO_CYLINDER):
     """Time to the first collision of particle i (synchronised) with a flat wall, and the
     wall's number 2μ + side (side 0 at 0, 1 at L_μ); (inf, _NO_EVENT) without walls.
 
     The gap to a wall closes at w − u, u the velocity along the wall's inward normal and
     w = s_i γ/2 the growth of the radius; a particle touching (or, by round-off, crossing)
-    a wall and approaching it collides at once."""
+    a wall and approaching it collides at once. The `cylinder`'s axes (if any) have no flat
+    walls (`_cylinder_event`)."""
     best = np.inf
     wall = _NO_EVENT
     radius = 0.5 * s[i] * scale
     growth = 0.5 * s[i] * rate
     for mu in range(x.shape[1]):
-        if periodic[mu]:
+        if periodic[mu] or mu == cylinder[0] or mu == cylinder[1]:
             continue
         for side in range(2):
             gap = x[i, mu] - radius if side == 0 else box[mu] - x[i, mu] - radius
@@ -182,6 +192,59 @@ def _wall_collision(i, wall, v, s, scale, rate):
     u = v[i, mu] * normal
     impulse = max(2.0 * (0.5 * s[i] * rate - u), 0.0)
     v[i, mu] += impulse * normal
+    return 0.5 * s[i] * scale * impulse
+
+
+@njit(cache=True)
+def _cylinder_event(i, x, v, s, box, cylinder, scale, rate):
+    """Time to the collision of particle i (synchronised) with the cylinder whose circle lies
+    in the axes (a, b) = `cylinder`, of diameter L = box[a] and centred at (L/2, L/2); inf if
+    there is none.
+
+    With ρ the centre's offset from the cylinder's axis, w its velocity in the circle's
+    plane, R = (L − σ_i)/2 and g = s_i γ/2 the growth of the radius, the contact is the
+    smallest τ > 0 with |ρ + w τ| = R − g τ. Its square is the quadratic
+    qa τ² + 2 qb τ + qc = 0 with qa = |w|² − g², qb = ρ·w + R g, qc = |ρ|² − R², and
+    qb > 0 means approaching. Inside (qc < 0) the smallest positive root of the quadratic is
+    the first zero of the gap R − g τ − |ρ + w τ| (before it R − g τ stays positive): for
+    qb > 0 it is −qc / (qb + √disc) whatever the sign of qa, for qb ≤ 0 it exists only when
+    qa > 0, (−qb + √disc)/qa (disc = qb² − qa qc). A particle touching (or, by round-off,
+    crossing) the cylinder and approaching it collides at once; one receding (just
+    reflected) meets it again at the far root."""
+    a, b = cylinder
+    half = 0.5 * box[a]
+    offset_a = x[i, a] - half
+    offset_b = x[i, b] - half
+    reach = half - 0.5 * s[i] * scale
+    growth = 0.5 * s[i] * rate
+    qa = v[i, a] * v[i, a] + v[i, b] * v[i, b] - growth * growth
+    qb = offset_a * v[i, a] + offset_b * v[i, b] + reach * growth
+    qc = offset_a * offset_a + offset_b * offset_b - reach * reach
+    disc = max(qb * qb - qa * qc, 0.0)
+    if qb > 0.0:
+        if qc >= 0.0:
+            return 0.0
+        return -qc / (qb + np.sqrt(disc))
+    if qa > 0.0:
+        return (-qb + np.sqrt(disc)) / qa
+    return np.inf
+
+
+@njit(cache=True)
+def _cylinder_collision(i, x, v, s, box, cylinder, scale, rate):
+    """Reflect particle i off the cylinder at contact as off a flat wall (`_wall_collision`)
+    with the inward normal −ρ̂; return the virial term (σ_i/2) × impulse (≥ 0)."""
+    a, b = cylinder
+    half = 0.5 * box[a]
+    offset_a = x[i, a] - half
+    offset_b = x[i, b] - half
+    rho = np.sqrt(offset_a * offset_a + offset_b * offset_b)
+    normal_a = -offset_a / rho
+    normal_b = -offset_b / rho
+    u = v[i, a] * normal_a + v[i, b] * normal_b
+    impulse = max(2.0 * (0.5 * s[i] * rate - u), 0.0)
+    v[i, a] += impulse * normal_a
+    v[i, b] += impulse * normal_b
     return 0.5 * s[i] * scale * impulse
 
 
@@ -234,10 +297,15 @@ def _predict(i, t, x, v, tl, s, box, inv, scale, rate, start, neighbours, counte
 
 
 @njit(cache=True)
-def _predict_wall(i, t, x, v, s, box, periodic, scale, rate, ev_time, ev_partner):
-    """After `_predict`: the collision of particle i with a wall replaces its next event if
-    it comes first. Kept out of `_predict`, so that a periodic run runs the same code."""
-    tau, wall = _wall_event(i, x, v, s, box, periodic, scale, rate)
+def _predict_wall(i, t, x, v, s, box, periodic, cylinder, scale, rate, ev_time, ev_partner):
+    """After `_predict`: the collision of particle i with a wall (flat, or the cylinder, wall
+    2d) replaces its next event if it comes first. Kept out of `_predict`, so that a
+    periodic run runs the same code."""
+    tau, wall = _wall_event(i, x, v, s, box, periodic, scale, rate, cylinder)
+    if cylinder[0] >= 0:
+        tau_cylinder = _cylinder_event(i, x, v, s, box, cylinder, scale, rate)
+        if tau_cylinder < tau:
+            tau, wall = tau_cylinder, 2 * x.shape[1]
     if t + tau < ev_time[i]:
         ev_time[i] = t + tau
         ev_partner[i] = _WALL - wall
@@ -263,7 +331,7 @@ def _temperature(v):
 
 @njit(cache=True)
 def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_every, skin,
-               max_time, periodic):
+               max_time, periodic, cylinder=NO_CYLINDER):
     """Run event-driven MD with growing diameters for `n_collisions` collisions.
 
     Parameters
@@ -293,7 +361,9 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
         Stop at this time even if fewer collisions happened.
     periodic : ndarray, shape (d,), bool
         Periodic axes; flat hard walls at 0 and L_μ along the others (no minimum image, no
-        wrap, wall collisions as events).
+        wrap, wall collisions as events), except the cylinder's.
+    cylinder : tuple of int, optional
+        The two axes (a, b) of a hard cylinder (box[a] = box[b]), or `NO_CYLINDER`.
 
     Returns
     -------
@@ -302,8 +372,8 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
     scale_end : float
         a at the end.
     virial : float
-        Σ_c |r_c| J_c over the collisions (length × momentum); a wall collision adds σ_i/2 ×
-        its impulse.
+        Σ_c |r_c| J_c over the collisions (length × momentum); a wall collision (flat or the
+        cylinder) adds σ_i/2 × its impulse.
     kt_time : float
         ∫ kT dt over the window (trapezoid between rescalings), for the reduced pressure
         p = 1 + virial / (d N kt_time).
@@ -360,7 +430,8 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
                 _predict(i, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb,
                          c_exp, 0.5 * s_max * rate, ev_time, ev_partner, ev_count)
                 if walled:
-                    _predict_wall(i, t, x, v, s, box, periodic, now, rate, ev_time, ev_partner)
+                    _predict_wall(i, t, x, v, s, box, periodic, cylinder, now, rate, ev_time,
+                                  ev_partner)
             _heapify(heap, where, ev_time)
             rebuild = False
             resync = False
@@ -387,12 +458,16 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
             _predict(i, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb, c_exp,
                      e_exp, ev_time, ev_partner, ev_count)
             if walled:
-                _predict_wall(i, t, x, v, s, box, periodic, now, rate, ev_time, ev_partner)
+                _predict_wall(i, t, x, v, s, box, periodic, cylinder, now, rate, ev_time,
+                              ev_partner)
             _reposition(heap, where, ev_time, i)
             continue
         _advance(x, v, tl, i, t)
         if at_wall:
-            virial += _wall_collision(i, _WALL - j, v, s, now, rate)
+            if _WALL - j == 2 * d:
+                virial += _cylinder_collision(i, x, v, s, box, cylinder, now, rate)
+            else:
+                virial += _wall_collision(i, _WALL - j, v, s, now, rate)
             counter[i] += 1
         else:
             _advance(x, v, tl, j, t)
@@ -435,7 +510,8 @@ def run_window(x, v, s, box, scale, rate, temperature, n_collisions, rescale_eve
             _predict(k, t, x, v, tl, s, box, inv, now, rate, start, neighbours, counter, xb, c_exp,
                      e_exp, ev_time, ev_partner, ev_count)
             if walled:
-                _predict_wall(k, t, x, v, s, box, periodic, now, rate, ev_time, ev_partner)
+                _predict_wall(k, t, x, v, s, box, periodic, cylinder, now, rate, ev_time,
+                              ev_partner)
             _reposition(heap, where, ev_time, k)
             if at_wall:                     # (j is a wall: particle i alone)
                 break

@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from calippso.boundaries import PERIODIC, WALLS, Boundaries
+from calippso.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
 from calippso.neighbors import SAME_PLACE, check_no_duplicates, min_gap, shrink_to_margin
 from calippso.packing import Packing
 
@@ -14,13 +14,14 @@ from ._checks import check_positive, remove_roundoff_overlap
 from .checkpoint import Checkpoint, Resumable, digest
 from ._progress import Progress
 from .edmd import run_window
+from .periodic import NO_CYLINDER
 from .initial import start_of
 from .result import GenerationResult, make_history
 
 __all__ = ["lubachevsky_stillinger", "GrowingSpheres"]
 
 #: The boundary kinds `lubachevsky_stillinger` handles.
-BOUNDARY_KINDS = (PERIODIC, WALLS)
+BOUNDARY_KINDS = (PERIODIC, WALLS, CYLINDER)
 
 
 class GrowingSpheres(Resumable):
@@ -29,7 +30,8 @@ class GrowingSpheres(Resumable):
     Parameters
     ----------
     packing : Packing
-        Start, periodic or between flat walls (inside them); if it overlaps, all diameters
+        Start, periodic, between flat walls or in a cylinder (inside it); if it overlaps, all
+        diameters
         are first scaled down by one factor until the closest pair has a gap of 1e-9 σ
         (`calippso.neighbors.shrink_to_margin`; a Poisson start begins at a tiny density).
         Particles at the same place (closer than 1e-12 mean diameters) are refused with a
@@ -46,7 +48,8 @@ class GrowingSpheres(Resumable):
     x, v : ndarray, shape (N, d)
         Positions (wrapped along the periodic axes) and velocities.
     boundaries : Boundaries
-        The start's container; `periodic` its periodic axes, shape (d,), bool.
+        The start's container; `periodic` its periodic axes, shape (d,), bool, and
+        `cylinder` its cylinder's axes (`edmd.run_window`; `periodic.NO_CYLINDER` without).
     nominal : ndarray, shape (N,)
         Nominal diameters s_i (mean 1); the diameters are s_i · scale.
     scale : float
@@ -60,6 +63,7 @@ class GrowingSpheres(Resumable):
         self.box = np.array(packing.box, dtype=np.float64)
         self.boundaries = packing.boundaries
         self.periodic = np.asarray(packing.periodic, dtype=np.bool_)
+        self.cylinder = packing.boundaries.cylinder_axes or NO_CYLINDER
         self.x = np.array(packing.wrapped().positions, dtype=np.float64)
         mean = packing.mean_diameter
         check_no_duplicates(self.x, self.box, SAME_PLACE * mean, self.mask)
@@ -93,7 +97,7 @@ class GrowingSpheres(Resumable):
         kt = self.temperature if temperature is None else temperature
         elapsed, scale, virial, kt_time, collisions, rebuilds = run_window(
             self.x, self.v, self.nominal, self.box, self.scale, rate, kt, n_collisions, 2 * n,
-            self.skin, np.inf, self.periodic)
+            self.skin, np.inf, self.periodic, self.cylinder)
         self.scale = scale
         self.time += elapsed
         self.collisions += collisions
@@ -128,7 +132,8 @@ class GrowingSpheres(Resumable):
         packing and the relative correction applied (0 if none).
         """
         diameters, correction = remove_roundoff_overlap(self.x, self.nominal * self.scale,
-                                                        self.box, self.mask)
+                                                        self.box, self.mask,
+                                                        self.boundaries.cylinder_axes)
         return Packing(self.x.copy(), diameters, self.box, self.boundaries), correction
 
     @property
@@ -212,12 +217,14 @@ def lubachevsky_stillinger(diameters=None, d: int | None = None, *, seed: int = 
         Smallest wall time in seconds between two checkpoint writes (0: every window).
     boundaries : calippso.Boundaries, optional
         The container of the Poisson centres made from `diameters`: periodic (None, the
-        default) or flat hard walls at 0 and L along some axes (`Boundaries.walls`; a
-        cylinder is refused). A `start` brings its own (this must then be None or the
-        same). A sphere meets a wall when its centre is σ_i(t)/2 from it and is reflected
-        elastically, the wall's growth of the contact distance s_i γ/2 added as in a pair
+        default), flat hard walls at 0 and L along some axes (`Boundaries.walls`) or a
+        cylinder (`Boundaries.cylinder`). A `start` brings its own (this must then be None
+        or the same). A sphere meets a wall when its centre is σ_i(t)/2 from it (for the
+        cylinder: ρ_i = L/2 − σ_i(t)/2 from its axis) and is reflected elastically along the
+        wall's normal, the wall's growth of the contact distance s_i γ/2 added as in a pair
         collision; the wall collisions add σ_i/2 × their impulse to the virial, so the
-        pressure is that on the walls. No minimum image and no wrap along walled axes.
+        pressure is that on the walls. No minimum image and no wrap along walled axes or
+        the cylinder's.
 
     Returns
     -------
@@ -228,15 +235,15 @@ def lubachevsky_stillinger(diameters=None, d: int | None = None, *, seed: int = 
         an overlapping start), ``overlap_correction`` (relative shrink for round-off overlaps
         at the end, ~1e-15 or 0), ``time`` (simulated time), ``resumed`` (whether the run
         continued from a checkpoint; `wall_time` then adds up every call's time). With
-        walls the packing carries the boundaries, every centre inside its walls; `steps`
-        counts pair and wall collisions.
+        walls or a cylinder the packing carries the boundaries, every centre inside them;
+        `steps` counts pair and wall collisions.
 
     Raises
     ------
     ValueError
-        On non-positive diameters, d < 2, non-positive rate / pressure / temperature, a
-        cylinder, boundaries that contradict the start's, or a checkpoint file that belongs
-        to another run.
+        On non-positive diameters, d < 2, non-positive rate / pressure / temperature,
+        boundaries that contradict the start's, or a checkpoint file that belongs to another
+        run.
     """
     wall = time.perf_counter()
     growth_rate = check_positive(growth_rate, "growth_rate")
@@ -307,7 +314,8 @@ def lubachevsky_stillinger(diameters=None, d: int | None = None, *, seed: int = 
                           packing.box * factor, packing.boundaries).wrapped()
         # the rescaling can round a contact into a 1e-16 overlap again: remove it as well
         diameters, rescaled = remove_roundoff_overlap(packing.positions, packing.diameters,
-                                                      packing.box, state.mask)
+                                                      packing.box, state.mask,
+                                                      packing.boundaries.cylinder_axes)
         if rescaled:
             packing = Packing(packing.positions, diameters, packing.box, packing.boundaries)
             correction += rescaled

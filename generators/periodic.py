@@ -13,7 +13,11 @@ from numba import njit
 from calippso import periodic
 
 __all__ = ["image_component", "wrap_coordinate", "wrap_into_box", "inverse_sides",
-           "all_periodic", "has_walls"]
+           "all_periodic", "has_walls", "NO_CYLINDER"]
+
+#: The `cylinder` argument of the kernels for a box without a cylinder (with one: its two
+#: axes (a, b), `calippso.boundaries.Boundaries.cylinder_axes`).
+NO_CYLINDER = (-1, -1)
 
 image_component = njit(cache=True, inline="always")(periodic.image_component)
 wrap_coordinate = njit(cache=True, inline="always")(periodic.wrap_coordinate)

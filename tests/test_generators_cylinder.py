@@ -1,7 +1,8 @@
-"""Generators in a cylinder: the soft quench (a harmonic curved wall). Each packing lies
-inside its cylinder, overlaps nothing, is not wrapped along the circle's axes, and reaches a
-density that makes sense; the kernel's cylinder terms are checked against the energy they
-derive from, and `calippso.jam` certifies a quench."""
+"""Generators in a cylinder: the soft quench (a harmonic curved wall) and LS (collisions with
+the cylinder as events). Each packing lies inside its cylinder, overlaps nothing, is not
+wrapped along the circle's axes, and reaches a density that makes sense; the quench's
+cylinder terms are checked against the energy they derive from, LS's event time and
+reflection against their formulas, and `calippso.jam` certifies a quench and an LS run."""
 
 from __future__ import annotations
 
@@ -273,3 +274,134 @@ def test_cylinder_quench_killed_mid_minimisation_resumes_bit_for_bit(tmp_path, m
     assert resumed.packing.boundaries == tube
     with pytest.raises(ValueError, match="differs in boundaries"):
         generators.soft_quench(sizes, 2, seed=7, checkpoint=path, minimiser=minimiser)
+
+
+# ------------------------------------------------------------------ Lubachevsky–Stillinger
+
+#: Reduced pressure of the LS runs in a cylinder, and the band of their densities (N = 128,
+#: a fast growth rate: below the periodic LS values, 0.84 for these discs and 0.64 for
+#: spheres).
+LS_PRESSURE = 1e5
+LS_PHI = {2: (0.78, 0.86), 3: (0.54, 0.64)}
+
+
+def _contact_residual(x, v, s, box, scale, rate, tau):
+    """|ρ + w τ| − (L/2 − σ(τ)/2) of particle 0 in a cylinder in x, y (0 at contact)."""
+    offset = x[0, :2] + v[0, :2] * tau - box[0] / 2
+    return np.linalg.norm(offset) - (box[0] / 2 - s[0] * (scale + rate * tau) / 2)
+
+
+def test_cylinder_event_meets_the_growing_sphere_and_reflects_with_the_growth():
+    """A sphere of diameter 1 growing at s γ/2 = 0.1 in a cylinder of diameter 4 meets it when
+    |ρ + w τ| = L/2 − σ(τ)/2; it leaves with the normal speed 2w − u (w = 0.1) along −ρ̂, its
+    tangential velocity kept and σ/2 × the impulse in the virial. Receding from the wall it
+    meets the far side (the later root); at rest it meets it when its growth closes the gap."""
+    from generators.edmd import _cylinder_collision, _cylinder_event
+
+    box, s, rate, cylinder = np.full(3, 4.0), np.array([1.0]), 0.2, (0, 1)
+    x = np.array([[2.6, 2.3, 1.0]])
+    v = np.array([[0.8, -0.1, 0.5]])
+    tau = _cylinder_event(0, x, v, s, box, cylinder, 1.0, rate)
+    assert 0 < tau < np.inf
+    assert _contact_residual(x, v, s, box, 1.0, rate, tau) == pytest.approx(0.0, abs=1e-14)
+    # no earlier contact: the gap is open on a fine grid before τ
+    grid = np.linspace(0.0, tau, 200)[:-1]
+    assert all(_contact_residual(x, v, s, box, 1.0, rate, t) < 0 for t in grid)
+    x[0] += v[0] * tau
+    scale = 1.0 + rate * tau
+    normal = -(x[0, :2] - 2.0) / np.linalg.norm(x[0, :2] - 2.0)
+    u, along = v[0, :2] @ normal, v[0, :2] @ np.array([-normal[1], normal[0]])
+    virial = _cylinder_collision(0, x, v, s, box, cylinder, scale, rate)
+    assert v[0, :2] @ normal == pytest.approx(2 * 0.1 - u, rel=1e-14)
+    assert v[0, :2] @ np.array([-normal[1], normal[0]]) == pytest.approx(along, rel=1e-12)
+    assert v[0, 2] == 0.5
+    assert virial == pytest.approx(0.5 * scale * 2 * (0.1 - u), rel=1e-14)
+    # just reflected (at contact, receding): the next contact is on the far side
+    again = _cylinder_event(0, x, v, s, box, cylinder, scale, rate)
+    assert again > 0.1
+    assert _contact_residual(x, v, s, box, scale, rate, again) == pytest.approx(0.0, abs=1e-13)
+    # at rest 0.5 from the axis: the gap 2 − 0.5 − 0.5 closes at the growth 0.1
+    rest = _cylinder_event(0, np.array([[2.5, 2.0, 1.0]]), np.zeros((1, 3)), s, box,
+                           cylinder, 1.0, rate)
+    assert rest == pytest.approx(1.0 / 0.1, rel=1e-14)
+    # approaching while touching (round-off): at once; without growth and at rest: never
+    touching = np.array([[3.5, 2.0, 1.0]])
+    assert _cylinder_event(0, touching, np.array([[0.1, 0.0, 0.0]]), s, box, cylinder,
+                           1.0, 0.0) == 0.0
+    assert _cylinder_event(0, touching, np.zeros((1, 3)), s, box, cylinder, 1.0,
+                           0.0) == np.inf
+
+
+def test_cylinder_axes_have_no_flat_wall_events():
+    """Along the cylinder's axes `_wall_event` finds no flat wall, while a flat wall along
+    another axis still meets the sphere."""
+    from generators.edmd import _wall_event
+
+    x, v, s = np.array([[2.0, 2.0, 1.0]]), np.array([[1.0, 1.0, -1.0]]), np.ones(1)
+    box = np.full(3, 4.0)
+    assert _wall_event(0, x, v, s, box, np.array([False, False, True]), 1.0, 0.0,
+                       (0, 1))[0] == np.inf
+    tau, wall = _wall_event(0, x, v, s, box, np.array([False, False, False]), 1.0, 0.0,
+                            (0, 1))
+    assert wall == 4 and tau == pytest.approx(0.5)
+
+
+def test_elastic_cylinder_conserves_the_kinetic_energy():
+    """At zero growth and without velocity rescaling, spheres bouncing off the cylinder and
+    off each other keep their kinetic energy, stay inside and collide with it."""
+    from generators.edmd import run_window
+
+    tube = cylinder_of(3)
+    start = generators.poisson(np.ones(40), 3, phi=0.05, seed=4, boundaries=tube)
+    x = start.positions.copy()
+    v = np.random.default_rng(4).standard_normal(x.shape)
+    energy = np.sum(v ** 2)
+    periodic = start.periodic.astype(bool)
+    _, _, virial, _, collisions, _ = run_window(x, v, np.ones(40), start.box, 1.0, 0.0, 1.0,
+                                                4000, 10 ** 9, 0.1, np.inf, periodic, (0, 1))
+    assert collisions == 4000 and virial > 0
+    assert np.sum(v ** 2) == pytest.approx(energy, rel=1e-12)
+    tube.check(x, np.ones(40), start.box)
+
+
+@pytest.fixture(scope="module")
+def ls_runs():
+    return {name: generators.lubachevsky_stillinger(sizes, d, seed=1,
+                                                    target_pressure=LS_PRESSURE,
+                                                    boundaries=cylinder_of(d))
+            for name, (d, sizes) in CASES.items()}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_ls_in_a_cylinder_reaches_its_pressure_inside_and_apart(name, ls_runs):
+    d, sizes = CASES[name]
+    tube = cylinder_of(d)
+    result = ls_runs[name]
+    assert result.reduced_pressure >= LS_PRESSURE
+    assert_inside_and_apart(result.packing, tube)
+    np.testing.assert_allclose(result.packing.diameters, sizes, rtol=1e-14)
+    low, high = LS_PHI[d]
+    assert low < result.packing.phi < high
+    # near jamming the spheres press on the cylinder: many within 1e-3 σ of contact
+    packing = result.packing
+    rho = np.linalg.norm(radial_offsets(packing), axis=1)
+    gap = packing.box[0] / 2 - rho - packing.diameters / 2
+    assert np.count_nonzero(gap < 1e-3 * packing.diameters) >= 10
+
+
+def test_ls_in_a_cylinder_is_certified_by_jam(ls_runs):
+    result = calippso.jam(ls_runs["d2"].packing)
+    assert result.isostatic
+    assert result.n_wall_contacts > 0
+    assert result.force_balance <= 1e-12
+
+
+def test_ls_continues_a_cylinder_start_and_keeps_its_cylinder():
+    """A start in a cylinder (Poisson points, shrunk to no overlap) is compressed in its own
+    container, its box unchanged."""
+    tube = cylinder_of(2)
+    start = generators.poisson(dist.bidisperse(64, 1.4), 2, phi=0.2, seed=3, boundaries=tube)
+    result = generators.lubachevsky_stillinger(start=start, target_pressure=1e3, seed=2)
+    assert result.reduced_pressure >= 1e3
+    assert_inside_and_apart(result.packing, tube)
+    np.testing.assert_array_equal(result.packing.box, start.box)
