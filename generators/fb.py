@@ -7,35 +7,40 @@ import time
 import numpy as np
 from numba import njit
 
-from calippso.boundaries import PERIODIC, WALLS, Boundaries
+from calippso.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
 from calippso.packing import Packing
 
 from ._checks import (check_boundaries, check_diameters, check_dimension, check_phi,
                       check_positive, phi_estimate, remove_roundoff_overlap)
 from ._progress import Progress
 from .cells import verlet_lists
-from .periodic import has_walls, image_component, inverse_sides, wrap_into_box
+from .periodic import NO_CYLINDER, has_walls, image_component, inverse_sides, wrap_into_box
 from .initial import poisson
 from .result import GenerationResult, make_history
 
 __all__ = ["force_biased"]
 
 #: The boundary kinds `force_biased` handles.
-BOUNDARY_KINDS = (PERIODIC, WALLS)
+BOUNDARY_KINDS = (PERIODIC, WALLS, CYLINDER)
 
 
 @njit(cache=True)
-def _wall_pushes(x, s, box, periodic, outer, force, inner):
+def _wall_pushes(x, s, box, periodic, outer, force, inner, cylinder=NO_CYLINDER):
     """Wall terms of an FB step: a flat wall acts on sphere i as its mirror image, a partner
     of the same diameter at distance 2δ (δ the centre's distance to the wall). Adds the
     Bezrukov push σ_i² (1 − (2δ)²/σ_i²) along the wall's inward normal to `force` when the
     sphere overlaps the wall at its nominal size σ_i = s_i · outer, and returns `inner`
     lowered to 2δ/s_i where that is smaller (the scale at which the sphere touches the wall).
+    A cylinder (axes `cylinder`, `NO_CYLINDER` without) does the same with δ = L/2 − ρ (ρ:
+    the centre's distance from its axis) and the inward normal −ρ̂; its axes have no flat
+    walls.
     """
     n, d = x.shape
+    if cylinder[0] >= 0:
+        inner = _cylinder_pushes(x, s, box, cylinder, outer, force, inner)
     for i in range(n):
         for mu in range(d):
-            if periodic[mu]:
+            if periodic[mu] or mu == cylinder[0] or mu == cylinder[1]:
                 continue
             for side in range(2):          # the wall at 0 (normal +e_μ), then at L_μ
                 distance = x[i, mu] if side == 0 else box[mu] - x[i, mu]
@@ -49,18 +54,52 @@ def _wall_pushes(x, s, box, periodic, outer, force, inner):
 
 
 @njit(cache=True)
-def _keep_between_walls(x, box, periodic):
-    """Hold every centre between the wall planes 0 and L_μ along the walled axes (an FB move
-    can carry a squeezed sphere past its wall; the wall's push brings it back)."""
-    n, d = x.shape
-    for i in range(n):
-        for mu in range(d):
-            if not periodic[mu]:
-                x[i, mu] = min(max(x[i, mu], 0.0), box[mu])
+def _cylinder_pushes(x, s, box, cylinder, outer, force, inner):
+    """The cylinder's terms of `_wall_pushes`: sphere i, its centre ρ from the axis of the
+    cylinder (axes a, b = `cylinder`, diameter L = box[a]), meets its mirror image at
+    2δ = 2 (L/2 − ρ); the push σ_i² (1 − (2δ)²/σ_i²) along −ρ̂ when 2δ < σ_i = s_i · outer,
+    and `inner` lowered to 2δ/s_i."""
+    a, b = cylinder
+    half = 0.5 * box[a]
+    for i in range(x.shape[0]):
+        offset_a = x[i, a] - half
+        offset_b = x[i, b] - half
+        rho = np.sqrt(offset_a * offset_a + offset_b * offset_b)
+        mirror = 2.0 * (half - rho)
+        inner = min(inner, mirror / s[i])
+        contact = s[i] * outer
+        if mirror < contact:           # then ρ > (L − σ_i)/2 > 0: ρ̂ is defined
+            push = (contact * contact - mirror * mirror) / rho
+            force[i, a] -= push * offset_a
+            force[i, b] -= push * offset_b
+    return inner
 
 
 @njit(cache=True)
-def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin, periodic):
+def _keep_between_walls(x, box, periodic, cylinder=NO_CYLINDER):
+    """Hold every centre between the wall planes 0 and L_μ along the walled axes, and inside
+    the cylinder's circle (`cylinder`: its axes, or `NO_CYLINDER`): an FB move can carry a
+    squeezed sphere past its wall; the wall's push brings it back."""
+    n, d = x.shape
+    for i in range(n):
+        for mu in range(d):
+            if not periodic[mu] and mu != cylinder[0] and mu != cylinder[1]:
+                x[i, mu] = min(max(x[i, mu], 0.0), box[mu])
+    if cylinder[0] >= 0:
+        a, b = cylinder
+        half = 0.5 * box[a]
+        for i in range(n):
+            offset_a = x[i, a] - half
+            offset_b = x[i, b] - half
+            rho = np.sqrt(offset_a * offset_a + offset_b * offset_b)
+            if rho > half:
+                x[i, a] = half + offset_a * (half / rho)
+                x[i, b] = half + offset_b * (half / rho)
+
+
+@njit(cache=True)
+def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin, periodic,
+              cylinder):
     """Run up to `n_steps` FB steps on positions `x` (in place).
 
     Each step, at the nominal ("outer") diameters s_i · outer:
@@ -73,9 +112,10 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin,
          φ_outer − φ_inner = φ_outer (1 − (inner/outer)^d) and φ_outer/outer^d =
          `phi_unit` (the packing fraction at scale 1).
 
-    Along the axes that are not `periodic` flat walls at 0 and L_μ push the spheres back
-    inside (`_wall_pushes`) and set the inner scale as a partner would; there is no minimum
-    image or wrap along them.
+    Along the axes that are not `periodic` flat walls at 0 and L_μ, or the cylinder whose
+    axes are `cylinder` (`NO_CYLINDER` without), push the spheres back inside
+    (`_wall_pushes`) and set the inner scale as a partner would; there is no minimum image
+    or wrap along them.
 
     Returns
     -------
@@ -119,7 +159,7 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin,
                         force[i, mu] += push * r[mu]
                         force[j, mu] -= push * r[mu]
         if walled:
-            inner = _wall_pushes(x, s, box, periodic, outer, force, inner)
+            inner = _wall_pushes(x, s, box, periodic, outer, force, inner, cylinder)
         if inner >= outer:
             return outer, inner, step, True
         if step == n_steps:
@@ -134,7 +174,7 @@ def _fb_steps(x, s, box, outer, phi_unit, step_size, contraction, n_steps, skin,
                 disp2 += dx * dx
             moved = max(moved, disp2)
         if walled:
-            _keep_between_walls(x, box, periodic)
+            _keep_between_walls(x, box, periodic, cylinder)
         phi_outer = phi_unit * outer**d
         gap = phi_outer * (1.0 - (inner / outer) ** d)
         j_exp = np.ceil(-np.log10(gap)) if gap > 0 else 0.0
@@ -185,25 +225,25 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
     skin : float
         Verlet skin in mean nominal diameters.
     boundaries : calippso.Boundaries, optional
-        The container: periodic (None, the default) or flat hard walls at 0 and L along some
-        axes (`Boundaries.walls`; a cylinder is refused). A sphere overlapping a wall at its
-        nominal size is pushed back inside as by its mirror image (Bezrukov push of a
-        partner at distance 2δ), and the wall bounds the inner size as a partner would: the
-        result lies inside the container. No minimum image and no wrap along walled axes.
+        The container: periodic (None, the default), flat hard walls at 0 and L along some
+        axes (`Boundaries.walls`) or a cylinder (`Boundaries.cylinder`). A sphere
+        overlapping a wall at its nominal size is pushed back inside as by its mirror image
+        (Bezrukov push of a partner at distance 2δ; in a cylinder δ = L/2 − ρ along −ρ̂),
+        and the wall bounds the inner size as a partner would: the result lies inside the
+        container. No minimum image and no wrap along walled axes or the cylinder's.
 
     Returns
     -------
     GenerationResult
         `reduced_pressure` is nan (FB has no dynamics); `steps` counts FB steps; history
         holds (step, φ_inner, nan, nominal shrink of the step / σ_nominal,0) every 50 steps;
-        `extra`: ``phi_nominal_final``, ``overlap_correction``. With walls the packing
-        carries the boundaries.
+        `extra`: ``phi_nominal_final``, ``overlap_correction``. With walls or a cylinder the
+        packing carries the boundaries.
 
     Raises
     ------
     ValueError
-        On non-positive diameters, d < 2, phi_nominal outside (0, 1), a box too small or a
-        cylinder.
+        On non-positive diameters, d < 2, phi_nominal outside (0, 1) or a box too small.
     """
     wall = time.perf_counter()
     diameters = check_diameters(diameters)
@@ -226,7 +266,7 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
         while not finished and steps < max_steps:
             outer, inner, done, finished = _fb_steps(
                 x, s, box, outer, phi_nominal, step_size, tau, min(50, max_steps - steps), skin,
-                boundaries.periodic)
+                boundaries.periodic, boundaries.cylinder_axes or NO_CYLINDER)
             steps += done
             phi_inner = phi_nominal * inner**d
             gap = max(phi_nominal * outer**d - phi_inner, 0.0)
@@ -242,7 +282,7 @@ def force_biased(diameters, d: int, *, phi_nominal: float | None = None,
     factor = mean / final
     sizes, correction = remove_roundoff_overlap(
         x * factor, s * mean, box * factor,
-        None if boundaries.is_periodic else boundaries.periodic)
+        None if boundaries.is_periodic else boundaries.periodic, boundaries.cylinder_axes)
     packing = Packing(x * factor, sizes, box * factor, boundaries).wrapped()
     status = (f"nominal and inner diameters met after {steps} steps" if finished else
               f"stopped at max_steps = {max_steps} before the nominal and inner sizes met")

@@ -1,8 +1,9 @@
-"""Generators in a cylinder: the soft quench (a harmonic curved wall) and LS (collisions with
-the cylinder as events). Each packing lies inside its cylinder, overlaps nothing, is not
-wrapped along the circle's axes, and reaches a density that makes sense; the quench's
-cylinder terms are checked against the energy they derive from, LS's event time and
-reflection against their formulas, and `calippso.jam` certifies a quench and an LS run."""
+"""Generators in a cylinder: the soft quench (a harmonic curved wall), LS (collisions with
+the cylinder as events) and FB (the cylinder pushes as a mirror image). Each packing lies
+inside its cylinder, overlaps nothing, is not wrapped along the circle's axes, and reaches a
+density that makes sense; the quench's cylinder terms are checked against the energy they
+derive from, LS's event time and reflection against their formulas, FB's push against its
+mirror partner's, and `calippso.jam` certifies a quench and an LS run."""
 
 from __future__ import annotations
 
@@ -405,3 +406,50 @@ def test_ls_continues_a_cylinder_start_and_keeps_its_cylinder():
     assert result.reduced_pressure >= 1e3
     assert_inside_and_apart(result.packing, tube)
     np.testing.assert_array_equal(result.packing.box, start.box)
+
+
+# ------------------------------------------------------------------ force-biased
+
+#: Band of the FB densities in a cylinder (N = 128, default contraction): a loose start,
+#: below the periodic FB values.
+FB_PHI = {2: (0.72, 0.84), 3: (0.48, 0.62)}
+
+
+def test_fb_cylinder_push_is_the_push_of_the_mirror_image():
+    """A sphere of nominal diameter 1 at δ = L/2 − ρ = 0.3 from a cylinder of diameter 3 is
+    pushed along −ρ̂ by σ² (1 − (2δ)²/σ²), the Bezrukov push of its mirror partner at 2δ, and
+    the inner scale becomes 2δ/s; the cylinder's axes have no flat walls (a sphere 0.45 from
+    x = 0, near a corner, feels the cylinder's push only); a centre carried past the
+    cylinder is put back on it."""
+    from generators.fb import _keep_between_walls, _wall_pushes
+
+    box, periodic = np.full(2, 3.0), np.array([False, False])
+    direction = np.array([0.6, -0.8])
+    x = np.array([1.5 + 1.2 * direction, [1.5, 1.5]])
+    force = np.zeros_like(x)
+    inner = _wall_pushes(x, np.ones(2), box, periodic, 1.0, force, np.inf, (0, 1))
+    np.testing.assert_allclose(force[0], -(1.0 - 0.6 ** 2) * direction, rtol=1e-12)
+    assert np.all(force[1] == 0.0)
+    assert inner == pytest.approx(0.6, rel=1e-12)
+    corner = np.array([[0.45, 0.9]])
+    force = np.zeros_like(corner)
+    _wall_pushes(corner, np.ones(1), box, periodic, 1.0, force, np.inf, (0, 1))
+    offset = corner[0] - 1.5
+    rho = np.linalg.norm(offset)
+    np.testing.assert_allclose(force[0], -(1.0 - (2 * (1.5 - rho)) ** 2) * offset / rho,
+                               rtol=1e-12)
+    outside = np.array([1.5 + 1.6 * direction])
+    _keep_between_walls(outside, box, periodic, (0, 1))
+    np.testing.assert_allclose(outside[0], 1.5 + 1.5 * direction, rtol=1e-14)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_fb_in_a_cylinder_is_inside_and_apart(name):
+    d, sizes = CASES[name]
+    tube = cylinder_of(d)
+    result = generators.force_biased(sizes, d, seed=1, boundaries=tube)
+    assert result.status.startswith("nominal and inner diameters met")
+    assert_inside_and_apart(result.packing, tube)
+    np.testing.assert_allclose(result.packing.diameters, sizes, rtol=1e-14)
+    low, high = FB_PHI[d]
+    assert low < result.packing.phi < high
