@@ -7,8 +7,9 @@ One calling convention for the sphere generators::
 
 A generator that can continue from a configuration (LS, MLS) takes it as ``start=packing``
 instead of diameters and d. LS, FB and the soft quench also make packings between flat hard
-walls (``boundaries=calippso.Boundaries.walls(d, axes)``, or a walled ``start=`` for LS);
-MLS and every cylinder are refused in one line. `poisson(diameters, d, *, phi, seed)` places
+walls (``boundaries=calippso.Boundaries.walls(d, axes)``) or in a cylinder
+(``calippso.Boundaries.cylinder(d, axes)``), or continue such a ``start=`` (LS); MLS refuses
+both in one line. `poisson(diameters, d, *, phi, seed)` places
 random centres and returns the `calippso.Packing` itself. The generators build only on
 calippso's geometry base (`calippso.packing`, `calippso.periodic`, `calippso.neighbors`,
 `calippso.atomic`, `calippso.checkpoint`, `calippso.boundaries`, and `calippso.rattlers` for
