@@ -1,0 +1,159 @@
+"""The network-first stage: the input's own contact network, certified with no LP.
+
+Candidates come from `calippso.network_guess` in a periodic box (the hint first, then the
+gap spectrum) and from `calippso.container_guess` in a container (pairs and wall contacts
+read from their gaps). At most `MAX_NETWORK_GUESSES` are tried: a periodic candidate is
+settled first (`calippso.network_first.settle_candidate`: restricted LP, Newton and contact
+pivots, a few rounds), then each goes to the Newton stage's certificate. Each candidate adds
+a history record (stage "guess"), a certified one also the pivot and Newton records; the
+notes say what happened.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..container_guess import container_candidates
+from ..history import StopReason
+from ..network import ContactNetwork, network_key
+from ..network_first import SettledNetwork, settle_candidate
+from ..network_guess import Candidate, candidate_networks
+from ..rattlers import remove_rattlers
+from .newton_stage import newton, record_pivots
+from .state import LoopState, Run
+
+__all__ = ["Certified", "network_first", "MAX_NETWORK_GUESSES"]
+
+#: Candidate networks the network-first stage settles at most (each costs a few sparse
+#: factorisations).
+MAX_NETWORK_GUESSES = 3
+
+
+@dataclass(frozen=True)
+class Certified:
+    """A network the stage certified, and why the run stops there
+    (`StopReason.NETWORK_FIRST`, or `StopReason.CERTIFIED_PIVOTS` when pivots repaired it)."""
+
+    network: ContactNetwork
+    reason: StopReason
+
+
+def network_first(run: Run, state: LoopState,
+                  hint: np.ndarray | None) -> tuple[LoopState, Certified | None]:
+    """Try the input's own contact networks.
+
+    Parameters
+    ----------
+    hint : ndarray, shape (M, 2), int, or None
+        A network the caller knows, tried first (periodic boxes only).
+
+    Returns
+    -------
+    (LoopState, Certified or None)
+        The state at the certified jamming point, or the input's state when no candidate
+        was certified (then a note says why, and the LP loop runs).
+    """
+    if run.walled:
+        return _in_a_container(run, state)
+    start = time.perf_counter()
+    candidates = candidate_networks(state.search, run.d, hint)[:MAX_NETWORK_GUESSES]
+    if not candidates:
+        run.history.note("network first: the input holds no isostatic contact network "
+                         "(not near a jamming point), so the LP loop ran")
+        return state, None
+    failures = []
+    for candidate in candidates:
+        settled, failure = settle_candidate(state.search, candidate, run.d,
+                                            pivots=run.settings.pivots != "off")
+        _record_guess(run, state, candidate, settled, time.perf_counter() - start)
+        if settled is not None:
+            if settled.pivots is not None:
+                record_pivots(run, settled.pivots)
+            network = ContactNetwork(settled.i, settled.j, np.zeros(settled.i.shape[0]),
+                                     settled.rattlers, float("nan"), "none", from_lp=False)
+            source = ("given as a hint" if candidate.source == "hint"
+                      else "read from the gap spectrum")
+            origin = (f"{source}, {settled.i.shape[0]} contacts"
+                      + (f", {settled.opened} near pair(s) left open" if settled.opened
+                         else "")
+                      + (f", settled in {settled.rounds} rounds" if settled.rounds > 1
+                         else ""))
+            state, outcome = newton(run, state, network, origin=origin,
+                                    refined=settled.refinement)
+            if outcome.network is not None:
+                run.report(run.history.last, run.packing(state), 0)
+                return state, Certified(outcome.network,
+                                        StopReason.NETWORK_FIRST if settled.pivots is None
+                                        else StopReason.CERTIFIED_PIVOTS)
+            failure = outcome.failure
+            # refused here, from the input's positions: the LP loop may still reach this
+            # network, and its Newton stage must not skip it as tried before
+            state = _forget(state, network_key(settled.i, settled.j, run.n))
+        failures.append(f"{candidate.source}: {failure}")
+        start = time.perf_counter()
+    run.history.note(f"network first: no guessed network was certified "
+                     f"({'; '.join(failures)}), so the LP loop ran")
+    return state, None
+
+
+def _in_a_container(run: Run, state: LoopState) -> tuple[LoopState, Certified | None]:
+    """The stage in a container: isostatic networks of pairs and wall contacts read from the
+    gaps (`calippso.container_guess`), each certified by the Newton stage or refused."""
+    start = time.perf_counter()
+    candidates = container_candidates(state.search, run.boundaries)[:MAX_NETWORK_GUESSES]
+    if not candidates:
+        run.history.note("network first: the input holds no isostatic network of "
+                         "particle and wall contacts (not near a jamming point), so the "
+                         "LP loop ran")
+        return state, None
+    failures = []
+    for candidate in candidates:
+        walls = candidate.walls
+        network = ContactNetwork(candidate.pairs.i, candidate.pairs.j,
+                                 np.zeros(len(candidate.pairs)), candidate.rattlers,
+                                 float("nan"), "none", from_lp=False,
+                                 wall_particle=walls.particle, wall=walls.wall,
+                                 wall_forces=np.zeros(len(walls)))
+        run.history.add_guess(seconds=time.perf_counter() - start,
+                              rows=network.n_contacts, n_contacts=network.n_contacts,
+                              n_stable=network.n_stable,
+                              min_gap=state.search.pairs_near_contact().smallest_gap(),
+                              phi=run.packing(state).phi)
+        origin = (f"read from the gaps of the pairs and walls, {network.n_contacts} "
+                  f"contacts, {len(walls)} with walls")
+        state, outcome = newton(run, state, network, origin=origin)
+        if outcome.network is not None:
+            run.report(run.history.last, run.packing(state), 0)
+            return state, Certified(outcome.network, StopReason.NETWORK_FIRST)
+        failures.append(outcome.failure)
+        # refused from the input's positions: the LP loop may still reach this network
+        state = _forget(state, network.key())
+        start = time.perf_counter()
+    run.history.note(f"network first: no guessed network was certified "
+                     f"({'; '.join(failures)}), so the LP loop ran")
+    return state, None
+
+
+def _forget(state: LoopState, key: str) -> LoopState:
+    """`state` with the network `key` no longer among the refused ones."""
+    return replace(state, failed_networks=state.failed_networks - {key})
+
+
+def _record_guess(run: Run, state: LoopState, candidate: Candidate,
+                  settled: SettledNetwork | None, seconds: float) -> None:
+    """Add the history record of one candidate network (stage "guess"; no LP, nothing
+    moves): the contacts and isostaticity gap of the settled network, or of the candidate's
+    pairs when it did not settle."""
+    close = state.search.pairs_near_contact()
+    if settled is not None:
+        n_contacts, stable = int(settled.i.shape[0]), ~settled.rattlers
+    else:
+        rattlers, kept = remove_rattlers(run.n, run.d, candidate.pairs.i, candidate.pairs.j)
+        n_contacts, stable = int(kept.sum()), ~rattlers
+    record = run.history.add_guess(seconds=seconds, rows=len(candidate.pairs),
+                                   n_contacts=n_contacts, n_stable=int(stable.sum()),
+                                   min_gap=close.smallest_gap(), phi=run.packing(state).phi)
+    run.report(record, run.packing(state), 0)

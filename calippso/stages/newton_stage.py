@@ -1,0 +1,137 @@
+"""The Newton stage: the certified jamming point of an isostatic network, and contact pivots.
+
+`newton` moves the configuration to the jamming point of a network and accepts it only with
+the certificate of `calippso.network.certify_network` (positive forces, no other overlap, a
+non-singular Jacobian). `newton_or_pivots` is the stage of the LP loop: with
+``pivots="always"``, a network refused only for non-positive forces is taken to the jamming
+point by contact pivots (`calippso.pivots`) and certified there.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..network import ContactNetwork, certify_network
+from ..newton import NEWTON_FAILED, Refinement, refine_isostatic
+from ..pivots import PivotPath, describe_path, pivot_to_jamming
+from .state import LoopState, Run
+
+__all__ = ["NewtonOutcome", "newton", "newton_or_pivots", "record_pivots", "TRIED_BEFORE"]
+
+#: Why a network that the Newton stage refused once is not tried again.
+TRIED_BEFORE = "tried before"
+
+
+@dataclass(frozen=True)
+class NewtonOutcome:
+    """What the Newton stage made of a network.
+
+    Attributes
+    ----------
+    network : ContactNetwork or None
+        The certified network (forces from its self-stress), or None if refused.
+    failure : str
+        Why it was refused ("" when certified).
+    pivoted : bool
+        Whether contact pivots led to it.
+    """
+
+    network: ContactNetwork | None
+    failure: str = ""
+    pivoted: bool = False
+
+
+def newton(run: Run, state: LoopState, network: ContactNetwork, *, retry: bool = False,
+           origin: str | None = None, refined: Refinement | None = None,
+           guessed: bool = False) -> tuple[LoopState, NewtonOutcome]:
+    """Move to the certified jamming point of an isostatic network.
+
+    Parameters
+    ----------
+    network : ContactNetwork
+        Its contacts and rattlers.
+    retry : bool
+        Try it even if it was refused before (at the end of the loop, from the converged
+        positions).
+    origin : str, optional
+        Where a network that did not come from an LP comes from (the network-first stage),
+        for the notes.
+    refined : Refinement, optional
+        Its Newton solution from the current positions, when already computed.
+    guessed : bool
+        It did not come from an LP's duals (nor does one with an `origin`): another
+        touching pair refuses it (`calippso.network.certify_network`).
+
+    Returns
+    -------
+    (LoopState, NewtonOutcome)
+        The state at the jamming point if certified (with a history record, stage
+        "newton", and a note), otherwise with the network among the refused ones.
+    """
+    key = network.key()
+    if key in state.failed_networks and not retry:
+        return state, NewtonOutcome(None, TRIED_BEFORE)
+    began = time.perf_counter()
+    certified, failure = certify_network(state.positions, state.diameters, run.box, network,
+                                         guessed=guessed or origin is not None,
+                                         refined=refined, boundaries=run.boundaries)
+    if certified is None:
+        return state.refused(key), NewtonOutcome(None, failure)
+    state = run.moved(state, certified.positions, certified.diameters, certified.search)
+    solution = certified.refinement
+    run.history.add_newton(
+        seconds=time.perf_counter() - began, sqrt_gamma_minus_1=solution.sqrt_gamma_minus_1,
+        max_displacement=solution.max_displacement, n_contacts=network.n_contacts,
+        n_stable=network.n_stable, force_balance=certified.balance,
+        min_gap=certified.min_gap, phi=run.packing(state).phi)
+    solved = (f"by Newton ({solution.iterations} iterations, {solution.factorizations} "
+              f"factorisation(s), residual {solution.residual:.0e})")
+    if origin is None:
+        run.history.note(f"contact equations solved {solved} after "
+                         f"{run.history.lps_solved} LPs; certified by positive forces "
+                         f"and no overlap")
+    else:
+        run.history.note(f"the input's own contact network ({origin}) solved {solved} "
+                         f"with no LP; certified by positive forces and no overlap")
+    return state, NewtonOutcome(certified.network)
+
+
+def newton_or_pivots(run: Run, state: LoopState,
+                     network: ContactNetwork) -> tuple[LoopState, NewtonOutcome]:
+    """The Newton stage for an LP's isostatic network; with ``pivots="always"``, contact
+    pivots from its jamming point when only non-positive forces refuse it."""
+    if run.settings.pivots != "always" or network.key() in state.failed_networks:
+        return newton(run, state, network)
+    refinement = refine_isostatic(state.positions, state.diameters, run.box, network.i,
+                                  network.j, ~network.rattlers)
+    if refinement is None:   # refused as the Newton stage would refuse it, solved once
+        return state.refused(network.key()), NewtonOutcome(None, NEWTON_FAILED)
+    state, outcome = newton(run, state, network, refined=refinement)
+    if outcome.network is not None or refinement.positive:
+        return state, outcome
+    path, _ = pivot_to_jamming(state.positions, state.diameters, run.box, network.i,
+                               network.j, network.rattlers, refined=refinement)
+    if path is None or not path.jammed:
+        return state, outcome
+    record_pivots(run, path)
+    pivoted = ContactNetwork(path.i, path.j, np.zeros(path.i.shape[0]), path.rattlers,
+                             float("nan"), network.solver, from_lp=False)
+    state, outcome = newton(run, state, pivoted, refined=path.refinement, guessed=True)
+    return state, replace(outcome, pivoted=True)
+
+
+def record_pivots(run: Run, path: PivotPath) -> None:
+    """Add the history record (stage "pivots") and the note of a path of contact pivots
+    that reached a jamming point; its Newton certificate is recorded next."""
+    refinement = path.refinement
+    moved = run.packing_of(refinement.positions, refinement.diameters)
+    record = run.history.add_pivots(
+        seconds=path.seconds, pivots=path.pivots,
+        sqrt_gamma_minus_1=refinement.sqrt_gamma_minus_1,
+        max_displacement=refinement.max_displacement, n_contacts=int(path.i.shape[0]),
+        n_stable=int((~path.rattlers).sum()), min_gap=float("nan"), phi=moved.phi)
+    run.history.note(describe_path(path))
+    run.report(record, moved, run.history.lps_solved)

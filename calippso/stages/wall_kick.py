@@ -1,0 +1,66 @@
+"""Between flat walls: a converged LP that is only a first-order stationary point.
+
+Equal spheres at a flat wall form layers with centres in one plane. A particle whose contacts
+all lie in such a plane can leave it at no first-order cost, so the LP converges (or creeps by
+second-order steps) with a hypostatic network: a floppy mode. Leaving opens its contacts at
+second order, and Γ can then grow: not a jamming point. `kick_off_walls` moves such particles
+out of their layer (`calippso.walls.out_of_layer_moves`) and the loop goes on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..history import Record
+from ..network import ContactNetwork
+from ..walls import out_of_layer_moves
+from .state import LoopState, Run
+
+__all__ = ["kick_off_walls", "WALL_KICK_STEP", "MAX_WALL_KICKS", "WALL_KICK_GROWTH"]
+
+#: Largest move off a wall (mean diameters) after an LP that converged hypostatic between
+#: walls, also the next LP's bound; how many times that is done.
+WALL_KICK_STEP = 1e-3
+MAX_WALL_KICKS = 20
+#: ... done also when an LP between walls grows √Γ by less than this with a hypostatic
+#: network: the LPs then creep along such a mode by second-order steps.
+WALL_KICK_GROWTH = 1e-9
+#: Pairs closer than this relative gap touch, and those with |n_μ| below the next value
+#: lie in a layer parallel to the walls of axis μ (`calippso.walls.out_of_layer_moves`).
+WALL_KICK_TOUCHING = 1e-6
+WALL_KICK_COPLANAR = 1e-6
+
+
+def kick_off_walls(run: Run, state: LoopState, record: Record,
+                   network: ContactNetwork) -> LoopState | None:
+    """The state moved out of the layers along flat walls, or None when the LP's network is
+    not hypostatic there (or no particle can move, or `MAX_WALL_KICKS` were done).
+
+    The particles held only within a layer move by up to `WALL_KICK_STEP` without any
+    overlap; the next LP starts from no warm start with that bound. Adds a note.
+
+    Parameters
+    ----------
+    record : Record
+        The history record of the LP that converged or crept.
+    network : ContactNetwork
+        Its contact network (the wall contacts say which particles sit at a wall).
+    """
+    axes = run.boundaries.wall_axes
+    if not axes or record.isostaticity_gap >= 0 or state.wall_kicks >= MAX_WALL_KICKS:
+        return None
+    moved = out_of_layer_moves(state.search, axes, network.wall_particle, WALL_KICK_STEP,
+                               WALL_KICK_TOUCHING, WALL_KICK_COPLANAR)
+    if moved is None:
+        return None
+    what = ("converged" if record.sqrt_gamma_minus_1 < run.settings.tol_gamma
+            else f"grew sqrt(Gamma) by {record.sqrt_gamma_minus_1:.1e}")
+    count = int(np.count_nonzero(np.any(moved != state.search.positions, axis=1)))
+    run.history.note(f"LP {run.history.lps_solved} {what} with a hypostatic network "
+                     f"between walls (gap {record.isostaticity_gap:+d}): {count} "
+                     f"particle(s) held only within a layer parallel to a wall moved "
+                     f"out of it, and the loop went on")
+    return replace(run.moved(state, moved), step=WALL_KICK_STEP, basis=None,
+                   wall_kicks=state.wall_kicks + 1)
