@@ -408,6 +408,30 @@ def test_ls_continues_a_cylinder_start_and_keeps_its_cylinder():
     np.testing.assert_array_equal(result.packing.box, start.box)
 
 
+
+def test_cylinder_ls_pushed_to_a_higher_pressure_is_the_direct_run(tmp_path):
+    """In a cylinder an LS run stopped at p = 1e3 and continued to 1e5 from its checkpoint is
+    the run made at 1e5 directly, bit for bit; the checkpoint is refused by the periodic
+    run."""
+    tube = cylinder_of(3)
+    args = {"d": 3, "seed": 5, "target_pressure": 1e5, "boundaries": tube}
+    sizes = dist.monodisperse(64)
+    direct = generators.lubachevsky_stillinger(sizes, **args)
+    path = tmp_path / "cylinder_ls"
+    low = generators.lubachevsky_stillinger(sizes, checkpoint=path,
+                                            **{**args, "target_pressure": 1e3})
+    assert 1e3 <= low.reduced_pressure < 1e5
+    high = generators.lubachevsky_stillinger(sizes, checkpoint=path, **args)
+    assert high.extra["resumed"]
+    np.testing.assert_array_equal(high.packing.positions, direct.packing.positions)
+    np.testing.assert_array_equal(high.packing.diameters, direct.packing.diameters)
+    np.testing.assert_array_equal(high.packing.box, direct.packing.box)
+    assert (high.steps, high.reduced_pressure) == (direct.steps, direct.reduced_pressure)
+    assert high.packing.boundaries == tube
+    with pytest.raises(ValueError, match="differs in boundaries"):
+        generators.lubachevsky_stillinger(sizes, checkpoint=path, **{**args, "boundaries": None})
+
+
 # ------------------------------------------------------------------ force-biased
 
 #: Band of the FB densities in a cylinder (N = 128, default contraction): a loose start,
