@@ -165,12 +165,11 @@ def test_generators_get_the_boundaries_only_when_they_take_them():
 
 @pytest.mark.parametrize("argv, message", [
     (["mls", "--n", "16", "--walls", "x"], "--walls x: generators.closest_jamming makes periodic"),
-    (["ls", "--n", "16", "--cylinder", "x,y"], "cylinder"),
+    (["mls", "--n", "16", "--cylinder", "x,y"], "--cylinder x,y: generators.closest_jamming"),
 ])
 def test_a_generator_refuses_a_container_it_cannot_make_in_one_line(tmp_path, capfd, argv,
                                                                     message):
-    """MLS takes no boundaries; LS takes walls but refuses a cylinder itself. Nothing is
-    written."""
+    """MLS takes no boundaries, neither walls nor a cylinder. Nothing is written."""
     code, out, err = _run(capfd, "generate", *argv, "-o", tmp_path / "g.npz", "--quiet")
     assert code == 1 and out == "" and err.count("\n") == 1
     assert err.startswith("error: ") and message in err

@@ -279,10 +279,7 @@ def test_ls_continues_a_walled_start_and_keeps_its_walls():
         generators.lubachevsky_stillinger(start=start, boundaries=Boundaries.walls(2, ["x"]))
 
 
-def test_ls_refuses_a_cylinder_and_mls_a_walled_start():
-    with pytest.raises(ValueError, match="lubachevsky_stillinger does not handle cylinder"):
-        generators.lubachevsky_stillinger(dist.monodisperse(64), 3,
-                                          boundaries=Boundaries.cylinder(3, ["x", "y"]))
+def test_mls_refuses_a_walled_start():
     start = generators.poisson(np.ones(64), 3, phi=0.2, seed=1,
                                boundaries=Boundaries.walls(3, ["x"]))
     with pytest.raises(ValueError, match="closest_jamming makes periodic packings only, got "
