@@ -1,8 +1,9 @@
 """What one solved LP says: its contacts, rattlers and forces, its largest displacements, and
 whether the bound on the displacements held it back.
 
-`analyse` reads an LP's answer into a `Step`; the loop (`calippso.ilp`) decides from it
-whether the packing has converged and how the bound adapts (`calippso.ilp.next_step_bound`).
+`analyse` reads an LP's answer into a `Step`; the LP stage (`calippso.stages.lp_step`)
+decides from it whether the packing has converged, and `calippso.ilp.next_step_bound` how
+the bound adapts.
 Lengths are in the loop's units (mean input diameter = 1).
 """
 
