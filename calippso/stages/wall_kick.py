@@ -1,10 +1,13 @@
-"""Between flat walls: a converged LP that is only a first-order stationary point.
+"""In a container: a converged LP that is only a first-order stationary point.
 
 Equal spheres at a flat wall form layers with centres in one plane. A particle whose contacts
 all lie in such a plane can leave it at no first-order cost, so the LP converges (or creeps by
 second-order steps) with a hypostatic network: a floppy mode. Leaving opens its contacts at
 second order, and Γ can then grow: not a jamming point. `kick_off_walls` moves such particles
-out of their layer (`calippso.walls.out_of_layer_moves`) and the loop goes on.
+out of their layer (`calippso.walls.out_of_layer_moves`) and the loop goes on. A floppy mode
+elsewhere (a wall row is linear, so the LP sees no second order at a wall) is left to the
+LPs: the loop goes on from a fresh step bound and no warm start, which lets them move along
+the mode far enough for its second order to open contacts.
 """
 
 from __future__ import annotations
@@ -35,11 +38,13 @@ WALL_KICK_COPLANAR = 1e-6
 
 def kick_off_walls(run: Run, state: LoopState, record: Record,
                    network: ContactNetwork) -> LoopState | None:
-    """The state moved out of the layers along flat walls, or None when the LP's network is
-    not hypostatic there (or no particle can move, or `MAX_WALL_KICKS` were done).
+    """The state to go on from after an LP in a container that converged (or crept) with a
+    hypostatic network, or None when the network is not hypostatic, the box is periodic or
+    `MAX_WALL_KICKS` were done.
 
-    The particles held only within a layer move by up to `WALL_KICK_STEP` without any
-    overlap; the next LP starts from no warm start with that bound. Adds a note.
+    The particles held only within a layer along a flat wall move by up to `WALL_KICK_STEP`
+    without any overlap; when there are none, nothing moves. Either way the next LP starts
+    with that bound and no warm start. Adds a note.
 
     Parameters
     ----------
@@ -48,19 +53,28 @@ def kick_off_walls(run: Run, state: LoopState, record: Record,
     network : ContactNetwork
         Its contact network (the wall contacts say which particles sit at a wall).
     """
-    axes = run.boundaries.wall_axes
-    if not axes or record.isostaticity_gap >= 0 or state.wall_kicks >= MAX_WALL_KICKS:
-        return None
-    moved = out_of_layer_moves(state.search, axes, network.wall_particle, WALL_KICK_STEP,
-                               WALL_KICK_TOUCHING, WALL_KICK_COPLANAR)
-    if moved is None:
+    if (run.boundaries.is_periodic or record.isostaticity_gap >= 0
+            or state.wall_kicks >= MAX_WALL_KICKS):
         return None
     what = ("converged" if record.sqrt_gamma_minus_1 < run.settings.tol_gamma
             else f"grew sqrt(Gamma) by {record.sqrt_gamma_minus_1:.1e}")
+    axes = run.boundaries.wall_axes
+    moved = None if not axes else out_of_layer_moves(
+        state.search, axes, network.wall_particle, WALL_KICK_STEP, WALL_KICK_TOUCHING,
+        WALL_KICK_COPLANAR)
+    restarted = replace(state, step=WALL_KICK_STEP, basis=None,
+                        wall_kicks=state.wall_kicks + 1)
+    if moved is None:
+        # no particle lies in a layer: the floppy mode is elsewhere; a fresh bound (and no
+        # warm start) lets the LPs move along it far enough for its second order to open
+        # contacts
+        run.history.note(f"LP {run.history.lps_solved} {what} with a hypostatic network in "
+                         f"a container (gap {record.isostaticity_gap:+d}): the loop went on "
+                         f"from a fresh step bound")
+        return restarted
     count = int(np.count_nonzero(np.any(moved != state.search.positions, axis=1)))
     run.history.note(f"LP {run.history.lps_solved} {what} with a hypostatic network "
                      f"between walls (gap {record.isostaticity_gap:+d}): {count} "
                      f"particle(s) held only within a layer parallel to a wall moved "
                      f"out of it, and the loop went on")
-    return replace(run.moved(state, moved), step=WALL_KICK_STEP, basis=None,
-                   wall_kicks=state.wall_kicks + 1)
+    return run.moved(restarted, moved)
