@@ -12,7 +12,7 @@ closure:
        [ I    J_xᵀ ] [ t ]   [ 0 ]
        [ J_x  0    ] [ λ ] = [ 1 ],
 
-   a sparse symmetric system whose factors are refined against it (`pivots.refined_solve`).
+   a sparse symmetric system whose factors are refined against it (`pivots.least_norm_solve`).
    It is singular when the contacts hold a self-stress, and then Γ cannot grow along the
    floppy modes at first order: the closure stops there.
 2. **Ratio test.** The first pair of stable particles outside C to close along t
@@ -41,13 +41,11 @@ import scipy.sparse as sp
 from .contacts import isostaticity_gap
 from .neighbors import NeighborSearch
 from .network import NEWTON_OVERLAP_TOLERANCE
-from .newton import (MAX_CORRECTION, MAX_ITERATIONS, RESIDUAL_TOLERANCE,
-                     STEP_TOLERANCE, Refinement, network_jacobian, refine_isostatic)
-from .packing import minimum_image, wrap
+from .newton import Refinement, network_jacobian, refine_isostatic
+from .packing import minimum_image
 from .pivots import (DEGENERATE_STEP, NEAR_GAP, RATIO_CANDIDATES, clear_rattlers,
-                     find_closing_pairs, outside_pairs, refined_solve)
+                     find_closing_pairs, least_norm_solve, onto_contacts, outside_pairs)
 from .rattlers import remove_rattlers
-from .sparse_lu import Factors, factorize
 
 __all__ = ["Closure", "close_floppy_modes", "MAX_CLOSURES"]
 
@@ -117,9 +115,10 @@ def close_floppy_modes(positions: np.ndarray, diameters: np.ndarray, box: np.nda
                       f"({missing} missing)")
     gamma = float(np.mean(_phi(positions, diameters, box, i, j) + 1.0))
     scaled = diameters * np.sqrt(gamma)
-    moved = _onto_contacts(positions, scaled, box, i, j, stable, 1.0)
-    if moved is None:
+    closed_at = onto_contacts(positions, scaled, box, i, j, stable, 1.0)
+    if closed_at is None:
         return None, "the network's contacts cannot all close at the start"
+    moved = closed_at[0]
     search = NeighborSearch(moved, scaled, box)
     if np.any(outside_pairs(search, i * n + j, stable, NEAR_GAP).gaps
               < -NEWTON_OVERLAP_TOLERANCE):
@@ -169,10 +168,11 @@ def _close_one(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: np.
         else:
             refinement, growth = None, np.sqrt(1.0 + step) - 1.0
             diameters = search.diameters * np.sqrt(1.0 + step)
-            positions = _onto_contacts(predicted, diameters, search.box, i_new, j_new, stable,
-                                       1.0)
-            if positions is None:
+            closed_at = onto_contacts(predicted, diameters, search.box, i_new, j_new, stable,
+                                      1.0)
+            if closed_at is None:
                 continue
+            positions = closed_at[0]
         if growth < -DEGENERATE_STEP:
             continue
         moved = NeighborSearch(positions, diameters, search.box)
@@ -207,68 +207,16 @@ def _position_jacobian(positions: np.ndarray, diameters: np.ndarray, box: np.nda
     return full[:, :-1].tocsr()
 
 
-def _least_norm_system(jacobian: sp.csr_matrix) -> sp.csc_matrix:
-    """[[I, Jᵀ], [J, 0]]: its solution with right side (0, b) is the least-norm t, J t = b."""
-    m, columns = jacobian.shape
-    return sp.bmat([[sp.identity(columns), jacobian.T], [jacobian, None]], format="csc")
-
-
-def _least_norm_solve(jacobian: sp.csr_matrix, rhs: np.ndarray,
-                      factors: Factors | None = None) -> tuple[np.ndarray, Factors] | None:
-    """The least-norm solution t of J t = rhs, shape (columns,), and the factors that gave
-    it: `factors` (of a nearby system) when their refined solve reaches round-off, else new
-    ones. None when the system is singular (J has a self-stress)."""
-    system = _least_norm_system(jacobian)
-    rows = system.tocsr()
-    full_rhs = np.concatenate([np.zeros(jacobian.shape[1]), rhs])
-    if factors is not None:
-        solution = refined_solve(rows, factors, full_rhs)
-        if solution is not None:
-            return solution[:jacobian.shape[1]], factors
-    factors = factorize(system, strict=False)
-    solution = None if factors is None else refined_solve(rows, factors, full_rhs)
-    return None if solution is None else (solution[:jacobian.shape[1]], factors)
-
-
 def _least_floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray,
                        stable: np.ndarray) -> np.ndarray | None:
     """The least displacement per unit of Γ that keeps every contact closed, shape (N, d)
     (zero for the pinned particle and the rattlers); None when Γ cannot grow (singular)."""
     n, d = search.positions.shape
     jacobian = _position_jacobian(search.positions, search.diameters, search.box, i, j, stable)
-    solved = _least_norm_solve(jacobian, np.ones(i.shape[0]))
+    solved = least_norm_solve(jacobian, np.ones(i.shape[0]))
     if solved is None:
         return None
     mode = np.zeros((n, d))
     mode[np.flatnonzero(stable)[1:]] = solved[0].reshape(-1, d)
     return mode
 
-
-def _onto_contacts(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                   i: np.ndarray, j: np.ndarray, stable: np.ndarray,
-                   gamma: float) -> np.ndarray | None:
-    """Positions moved by least-norm Gauss–Newton steps until every pair (i, j) is in contact
-    at inflation `gamma` (|r_c|²/σ_c² = Γ to `RESIDUAL_TOLERANCE`), wrapped into the box; None
-    when the steps diverge or do not converge in `MAX_ITERATIONS`."""
-    n, d = positions.shape
-    movable = np.flatnonzero(stable)[1:]
-    moved = positions.copy()
-    factors = None
-    for _ in range(MAX_ITERATIONS):
-        residual = _phi(moved, diameters, box, i, j) + 1.0 - gamma
-        if float(np.abs(residual).max(initial=0.0)) <= RESIDUAL_TOLERANCE:
-            return wrap(moved, box)
-        jacobian = _position_jacobian(moved, diameters, box, i, j, stable)
-        solved = _least_norm_solve(jacobian, -residual, factors)
-        if solved is None:
-            return None
-        correction, factors = solved
-        largest = float(np.abs(correction).max(initial=0.0))
-        if not largest <= MAX_CORRECTION:
-            return None
-        moved[movable] += correction.reshape(-1, d)
-        if largest < STEP_TOLERANCE:
-            residual = _phi(moved, diameters, box, i, j) + 1.0 - gamma
-            worst = float(np.abs(residual).max(initial=0.0))
-            return wrap(moved, box) if worst <= RESIDUAL_TOLERANCE else None
-    return None

@@ -17,6 +17,9 @@ floppy modes (`calippso.floppy_modes`). Each round
 4. when no other pair overlaps but some forces are not positive, and ``pivots`` is on,
    follows the contact pivots of `calippso.pivots` from that point: each releases one such
    contact and closes the next pair on the exact geometry, until every force is positive.
+   A network that Newton cannot solve because its Jacobian is singular (isostatic by count,
+   a floppy cluster balanced by a redundant contact) is repaired by the pivots first: they
+   open the redundant contact and close the floppy mode, then go on from that vertex.
 Otherwise the next round reads the candidates at that point (the pairs within `near_gap` of
 contact: the network, the pairs that overlap, those about to close) and the restricted LP,
 linearised there, chooses again.
@@ -156,15 +159,21 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         else:
             refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
                                        ~rattlers)
+        path = None
+        if refined is None and pivots:   # a singular network: the pivots repair it first
+            path, failure = pivot_to_jamming(current.positions, current.diameters, search.box,
+                                             i, j, rattlers, max_pivots=ROUND_PIVOTS)
+            if path is not None:
+                i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement
         if refined is None and direct:
             continue   # the restricted LP chooses from the same pairs
         if refined is None:
-            return None, NEWTON_FAILED
+            return None, failure if pivots else NEWTON_FAILED
         current = NeighborSearch(refined.positions, refined.diameters, search.box)
         near = _near_pairs(current, near_gap)
         overlap = _overlaps_outside(near, i, j, rattlers).any()
-        path = None
-        if pivots and (closure is not None or not refined.positive) and not overlap:
+        if (path is None and pivots and (closure is not None or not refined.positive)
+                and not overlap):
             path, failure = pivot_to_jamming(current.positions, current.diameters,
                                              search.box, i, j, rattlers, refined=refined,
                                              max_pivots=ROUND_PIVOTS)

@@ -31,6 +31,14 @@ cage (d unknowns and d + 1 rows: the released network becomes isostatic again). 
 cage of a particle that the release left with d contacts closes on it, the pivot is made
 again with that particle kept in the network, held by its d contacts.
 
+A start that Newton cannot solve because its Jacobian is singular (isostatic by count but
+not by rank: a floppy cluster somewhere, balanced by a redundant contact elsewhere) is
+repaired first (`_repair_singular`): one sparse LU of the bordered Jacobian gives its floppy
+mode t and its self-stress s (`singular_vectors`); a contact that s marks as redundant opens
+(the sign of s chosen so that it opens, not overlaps), the network closes without it, and t
+is followed with Γ not decreasing until the ratio test closes a pair. That swap is the
+path's first (`Swap.repaired`), and the ordinary pivots go on from its vertex.
+
 Γ never decreases, so the path can only revisit a network through degenerate pivots (where
 the closing pair already touches); Bland's rule and a record of the networks seen since Γ
 last grew rule that out.
@@ -53,14 +61,16 @@ from scipy.linalg import lu_factor, lu_solve
 
 from .neighbors import NeighborSearch, Pairs
 from .network import NEWTON_OVERLAP_TOLERANCE
-from .newton import (MAX_REFINEMENTS, MIN_FORCE_RATIO, NEWTON_FAILED, REFINEMENT_TOLERANCE,
+from .newton import (MAX_CORRECTION, MAX_ITERATIONS, MAX_REFINEMENTS, MIN_FORCE_RATIO,
+                     NEWTON_FAILED, REFINEMENT_TOLERANCE, RESIDUAL_TOLERANCE, STEP_TOLERANCE,
                      Refinement, network_jacobian, refine_isostatic)
-from .packing import minimum_image
+from .packing import minimum_image, wrap
 from .rattlers import remove_rattlers, separate_rattlers
 from .sparse_lu import Factors, factorize
 
-__all__ = ["PivotPath", "Swap", "pivot_to_jamming", "describe_path", "MAX_PIVOTS", "NEAR_GAP",
-           "MAX_NEAR_GAP", "DEGENERATE_STEP", "CAGE_CLOSED"]
+__all__ = ["PivotPath", "Swap", "pivot_to_jamming", "describe_path", "singular_vectors",
+           "least_norm_solve", "onto_contacts", "MAX_PIVOTS", "NEAR_GAP", "MAX_NEAR_GAP",
+           "DEGENERATE_STEP", "CAGE_CLOSED"]
 
 #: Pivots taken at most before the path gives up (a network a few contacts off takes a few
 #: to a few tens).
@@ -104,6 +114,24 @@ RATIO_CANDIDATES = 4
 #: contact), or its floppy mode closes no pair. Any of them may leave: Γ grows along each.
 LEAVING_TRIES = 5
 
+#: Seed of the random border of the rank-revealing system (`singular_vectors`): fixed, so
+#: that a repair is reproducible.
+BORDER_SEED = 34
+#: A network's Jacobian is singular (and its start is repaired, `_repair_singular`) when
+#: its null vector t leaves |J t| below this fraction of |J| |t| (largest row): the chord
+#: steps of Newton from a Jacobian that near singular exceed `newton.MAX_CORRECTION`.
+SINGULAR_RESIDUAL = 1e-8
+#: The sign rule of a repair is undecided when sᵀΦ (or its curvature along the floppy mode)
+#: is below this fraction of the same sum with |s| and |Φ|: round-off, the redundant contacts
+#: do not move along the mode (its floppy cluster is apart from them), and either may open.
+UNDECIDED_SIGN = 1e-8
+#: Contacts whose self-stress is below this fraction of the largest are not opened by a
+#: repair: without them the network would stay nearly singular.
+REDUNDANT_RATIO = 1e-3
+#: Redundant contacts tried in turn (largest self-stress first) by a repair, each with the
+#: first pairs of the ratio test; each try is a Newton solve.
+REPAIR_TRIES = 3
+
 
 @dataclass(frozen=True)
 class Swap:
@@ -122,6 +150,10 @@ class Swap:
     rejoined : int
         Rattlers whose cage closed along the floppy mode (they join the network with d + 1
         contacts; `closed` is the first of them).
+    repaired : bool
+        The swap repaired a singular start (`_repair_singular`): `released` is the
+        redundant contact opened, `closed` the pair that closed the floppy mode, and
+        `growth` is measured from the mean inflation of the start's contacts.
     """
 
     released: tuple[int, int]
@@ -129,6 +161,7 @@ class Swap:
     growth: float
     new_rattlers: int
     rejoined: int = 0
+    repaired: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -177,6 +210,11 @@ class PivotPath:
     def degenerate(self) -> int:
         """Pivots that gained no inflation."""
         return sum(swap.growth <= DEGENERATE_STEP for swap in self.swaps)
+
+    @property
+    def repairs(self) -> int:
+        """Swaps that repaired a singular network (`Swap.repaired`)."""
+        return sum(swap.repaired for swap in self.swaps)
 
     @property
     def largest_growth(self) -> float:
@@ -274,9 +312,11 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         An isostatic network between stable particles, M = d (N_s − 1) + 1, i < j.
     rattlers : ndarray, shape (N,), bool
     refined : Refinement, optional
-        Newton's solution of the network from `positions`, when already computed.
+        Newton's solution of the network from `positions`, when already computed. Without
+        it Newton solves the network; when it cannot (a singular Jacobian), the network is
+        repaired (`_repair_singular`), and that repair is the path's first pivot.
     max_pivots : int
-        Pivots taken at most.
+        Pivots taken at most (a repair counts as one).
 
     Returns
     -------
@@ -285,26 +325,33 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         or where it stopped and why: the network became singular, a floppy mode closes no
         pair near contact, a rattler's cage closed, or `max_pivots` were taken (a
         `PivotPath` with ``jammed=False`` once a pivot was made, None when the start itself
-        is refused: another pair overlaps there, or its Newton solution fails).
+        is refused: another pair overlaps there, or Newton fails and the network is not
+        singular or its repair fails).
     """
     began = time.perf_counter()
     i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)
     stable = ~np.asarray(rattlers, dtype=bool)
+    start_positions, start_diameters = positions, diameters
+    swaps: list[Swap] = []
     if refined is None:
         refined = refine_isostatic(positions, diameters, box, i, j, stable)
+    if refined is None:   # a singular network has no Newton point: repair it
+        repaired, failure = _repair_singular(positions, diameters, box, i, j, stable)
+        if repaired is None:
+            return None, f"{NEWTON_FAILED}; no repair: {failure}"
+        vertex, swap, factorizations = repaired
+        swaps.append(swap)
+    else:
+        refined = _rattlers_out_of_the_way(
+            NeighborSearch(refined.positions, refined.diameters, box), refined, stable)
         if refined is None:
-            return None, NEWTON_FAILED
-    start_positions, start_diameters = positions, diameters
-    refined = _rattlers_out_of_the_way(
-        NeighborSearch(refined.positions, refined.diameters, box), refined, stable)
-    if refined is None:
-        return None, "a rattler overlaps its cage at the start"
-    basis = None if refined.factorization is None else _Basis(*refined.factorization, stable)
-    vertex = _Vertex(i, j, stable, refined, basis)
-    swaps: list[Swap] = []
+            return None, "a rattler overlaps its cage at the start"
+        basis = (None if refined.factorization is None
+                 else _Basis(*refined.factorization, stable))
+        vertex = _Vertex(i, j, stable, refined, basis)
+        factorizations = refined.factorizations
     seen = {_network_digest(vertex)}
-    factorizations = refined.factorizations
-    degenerate = False
+    degenerate = bool(swaps) and swaps[0].growth <= DEGENERATE_STEP
 
     def ended(jammed: bool) -> PivotPath:
         return PivotPath(vertex.i, vertex.j, ~vertex.stable,
@@ -503,6 +550,189 @@ def _rejoin_caged(moved: NeighborSearch, vertex: _Vertex, i_a: np.ndarray, j_a: 
     return None
 
 
+class _TransposedFactors:
+    """The factors of Aᵀ, from factors of A (for `refined_solve` with a transposed matrix)."""
+
+    def __init__(self, factors: Factors):
+        self._factors = factors
+
+    def solve(self, rhs: np.ndarray, trans: str = "N") -> np.ndarray:
+        return self._factors.solve(rhs, trans="N" if trans == "T" else "T")
+
+
+def singular_vectors(jacobian: sp.spmatrix) -> tuple[np.ndarray, np.ndarray] | None:
+    """The null vector t (J t = 0) and the self-stress s (Jᵀ s = 0) of a square Jacobian of
+    rank one less than its size, from one sparse LU of the bordered matrix
+
+        B = [ J   b ]      B [t; τ] = [0; 1],   Bᵀ [s; ς] = [0; 1],
+            [ cᵀ  0 ],
+
+    with random borders b, c (`BORDER_SEED`, scaled to the entries of J): B is non-singular
+    when b is outside the range of J and c is not orthogonal to its null vector, and then
+    τ = ς = 0 and t, s span the two null spaces (Keller's bordering). For a non-singular J
+    the same solves give vectors with J t = −τ b ≠ 0: the caller judges the residual.
+
+    Parameters
+    ----------
+    jacobian : sparse matrix, shape (M, M)
+        The contact Jacobian of a network (`calippso.newton.network_jacobian`), its last
+        column Γ's.
+
+    Returns
+    -------
+    (ndarray, ndarray) or None
+        t and s, shape (M,) each, scaled to a largest component of 1 (t: positions per unit
+        of the mode, its last component dΓ; s: one weight per contact); None when B is
+        singular too (J lacks more than one rank) or its solves do not refine to round-off.
+    """
+    m = jacobian.shape[0]
+    matrix = sp.csr_matrix(jacobian)
+    scale = float(np.abs(matrix.data).mean()) if matrix.nnz else 1.0
+    column, row = scale * np.random.default_rng(BORDER_SEED).standard_normal((2, m))
+    bordered = sp.bmat([[matrix, sp.csr_matrix(column[:, None])],
+                        [sp.csr_matrix(row[None, :]), None]], format="csc")
+    factors = factorize(bordered, strict=False)
+    if factors is None:
+        return None
+    unit = np.zeros(m + 1)
+    unit[m] = 1.0
+    null = refined_solve(bordered.tocsr(), factors, unit)
+    stress = refined_solve(bordered.T.tocsr(), _TransposedFactors(factors), unit)
+    if null is None or stress is None:
+        return None
+    null, stress = null[:m], stress[:m]
+    return null / np.abs(null).max(), stress / np.abs(stress).max()
+
+
+def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                     i: np.ndarray, j: np.ndarray, stable: np.ndarray
+                     ) -> tuple[tuple[_Vertex, Swap, int] | None, str]:
+    """Repair an isostatic network whose Jacobian is singular: open a redundant contact,
+    close the floppy mode.
+
+    With J singular (rank M − 1) the network holds a floppy mode t (J t = 0: a floppy
+    cluster, or Γ growing with every contact closed) and a self-stress s (Jᵀ s = 0, so
+    Σ s = 0: a redundant subnetwork), `singular_vectors`. Releasing a contact c with
+    s_c ≠ 0 leaves A = C ∖ c, M − 1 independent rows whose one-dimensional null space is t
+    still. The combination sᵀΦ of the contact equations Φ_k = |r_k|²/σ_k² − Γ does not
+    change to first order along any motion (sᵀJ = 0), so wherever A's contacts close,
+    s_c Φ_c = sᵀΦ: from the start Φ⁰ to first order, and along t by λ²/2 Σ_k s_k
+    2|Δt_k|²/σ_k² more at a step λ (Δt_k the relative displacement of contact k). The sign
+    rule: s is oriented so that sᵀΦ⁰ > 0 (a start whose contacts all close, to
+    `RESIDUAL_TOLERANCE`: so that the second-order term is positive), and c is a contact
+    with s_c ≥ `REDUNDANT_RATIO` (largest first: the best-conditioned release); c then
+    opens. When both terms vanish (`UNDECIDED_SIGN`: the floppy cluster is apart from the
+    redundant contacts, which the mode does not move), c is the largest |s_c|, and it stays
+    at contact.
+
+    A's contacts close by least-norm steps in positions and Γ (`onto_contacts`); from there
+    t is followed with Γ not decreasing (t_Γ ≥ 0; a floppy cluster has t_Γ = 0 and Γ moves
+    at second order) and the ratio test (`find_closing_pairs`, c left out) gives the pair k
+    that closes first. Newton solves A ∪ {k} from the predicted point, which is accepted
+    when Γ did not decrease from where A's contacts closed, no other pair (c included)
+    overlaps, and the rattlers clear their cages; particles that A ∪ {k} leaves with d
+    contacts (their forces vanish) become rattlers with their contacts. Otherwise the next
+    pair of the ratio test, then the next redundant contact, is tried.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres (mean diameters), with the network's pairs near contact.
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    i, j : ndarray, shape (M,), int64
+        The network, M = d (N_s − 1) + 1, i < j.
+    stable : ndarray, shape (N,), bool
+
+    Returns
+    -------
+    ((vertex, swap, factorisations) or None, str)
+        The first vertex of the path and its swap (`Swap.repaired`, its growth measured
+        from where A's contacts closed), or None and why.
+    """
+    n, d = positions.shape
+    vectors = minimum_image(positions[i] - positions[j], box)
+    ratios = np.einsum("md,md->m", vectors, vectors) / (0.5 * (diameters[i] + diameters[j]))**2
+    scaled = diameters * np.sqrt(float(np.mean(ratios)))   # Γ = 1 at the contacts' mean
+    sigma = 0.5 * (scaled[i] + scaled[j])
+    jacobian = network_jacobian(vectors, sigma, i, j, stable)
+    found = singular_vectors(jacobian)
+    if found is None:
+        return None, "the Jacobian lacks more than one rank"
+    null, stress = found
+    if float(np.abs(jacobian @ null).max()) > SINGULAR_RESIDUAL * float(
+            (abs(jacobian) @ np.abs(null)).max()):
+        return None, "the Jacobian is not singular"
+    if null[-1] < 0:   # Γ does not decrease along the mode
+        null = -null
+    mode = np.zeros((n, d))
+    mode[np.flatnonzero(stable)[1:]] = null[:-1].reshape(-1, d)
+    phi = np.einsum("md,md->m", vectors, vectors) / sigma**2 - 1.0
+    relative = mode[i] - mode[j]
+    curvature = 2.0 * np.einsum("md,md->m", relative, relative) / sigma**2
+    # sᵀΦ moves c: at first order from the start, at second order along t from a closed start
+    moving = curvature if float(np.abs(phi).max()) <= RESIDUAL_TOLERANCE else phi
+    measure = float(stress @ moving)
+    if abs(measure) > UNDECIDED_SIGN * float(np.abs(stress) @ np.abs(moving)):
+        oriented = stress * np.sign(measure)
+    else:   # the mode does not move the redundant contacts (a separate floppy cluster)
+        oriented = np.abs(stress)
+    opening = np.flatnonzero(oriented >= REDUNDANT_RATIO)
+    solves = 0
+    for released in opening[np.argsort(-oriented[opening], kind="stable")][:REPAIR_TRIES]:
+        keep = np.ones(i.shape[0], dtype=bool)
+        keep[released] = False
+        closing_at = onto_contacts(positions, scaled, box, i[keep], j[keep], stable)
+        if closing_at is None:
+            continue
+        start = NeighborSearch(closing_at[0], scaled * np.sqrt(closing_at[1]), box)
+        ratio_test = find_closing_pairs(start, i * n + j, stable, mode, gamma_rate=null[-1])
+        if ratio_test is None:
+            continue
+        near, steps, candidates = ratio_test
+        for closing in candidates[:RATIO_CANDIDATES]:
+            step = _repaired_vertex(start, i, j, stable, int(released), near, closing,
+                                    start.positions + float(steps[closing]) * mode)
+            if step is not None:
+                vertex, swap, made = step
+                return (vertex, swap, solves + made), ""
+            solves += 1
+    return None, "no redundant contact and closing pair gave a vertex"
+
+
+def _repaired_vertex(start: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: np.ndarray,
+                     released: int, near: Pairs, closing: int, predicted: np.ndarray
+                     ) -> tuple[_Vertex, Swap, int] | None:
+    """The vertex of a repair (`_repair_singular`): Newton on the network with contact
+    `released` swapped for pair `closing` of `near`, from `predicted`; None when Newton
+    fails, Γ decreased from `start`, another pair overlaps, or a cage closed on its rattler.
+    """
+    n, d = start.positions.shape
+    i_new, j_new = i.copy(), j.copy()
+    i_new[released], j_new[released] = near.i[closing], near.j[closing]
+    refined = refine_isostatic(predicted, start.diameters, start.box, i_new, j_new, stable)
+    if refined is None:
+        return None
+    growth = float(np.mean(refined.diameters / start.diameters)) - 1.0
+    if growth < -DEGENERATE_STEP:
+        return None
+    now_rattlers, kept = remove_rattlers(n, d, i_new, j_new)
+    i_new, j_new, now_stable = i_new[kept], j_new[kept], ~now_rattlers
+    refined = replace(refined, forces=refined.forces[kept])
+    moved = NeighborSearch(refined.positions, refined.diameters, start.box)
+    if np.any(outside_pairs(moved, i_new * n + j_new, now_stable, NEAR_GAP).gaps
+              < -NEWTON_OVERLAP_TOLERANCE):
+        return None
+    separated = _rattlers_out_of_the_way(moved, refined, now_stable)
+    if separated is None:
+        return None
+    basis = (_Basis(*refined.factorization, stable) if refined.factorization is not None
+             and np.array_equal(now_stable, stable) else None)
+    swap = Swap((int(i[released]), int(j[released])),
+                (int(near.i[closing]), int(near.j[closing])), max(growth, 0.0),
+                int(np.count_nonzero(now_rattlers & stable)), repaired=True)
+    return _Vertex(i_new, j_new, now_stable, separated, basis), swap, refined.factorizations
+
 def _rattlers_out_of_the_way(search: NeighborSearch, refined: Refinement,
                              stable: np.ndarray) -> Refinement | None:
     """`refined` (the configuration of `search`) with its rattlers cleared of the moved cages
@@ -601,60 +831,156 @@ def refined_solve(matrix: sp.csr_matrix, factors: Factors,
     return None
 
 
+def least_norm_solve(jacobian: sp.csr_matrix, rhs: np.ndarray,
+                     factors: Factors | None = None) -> tuple[np.ndarray, Factors] | None:
+    """The least-norm solution t of J t = rhs, shape (columns,), from the sparse symmetric
+    system [[I, Jᵀ], [J, 0]] [t; λ] = [0; rhs], and the factors that gave it: `factors` (of
+    a nearby system) when their refined solve reaches round-off, else new ones. None when
+    the system is singular (the rows of J are dependent: a self-stress)."""
+    columns = jacobian.shape[1]
+    system = sp.bmat([[sp.identity(columns), jacobian.T], [jacobian, None]], format="csc")
+    rows = system.tocsr()
+    full_rhs = np.concatenate([np.zeros(columns), rhs])
+    if factors is not None:
+        solution = refined_solve(rows, factors, full_rhs)
+        if solution is not None:
+            return solution[:columns], factors
+    factors = factorize(system, strict=False)
+    solution = None if factors is None else refined_solve(rows, factors, full_rhs)
+    return None if solution is None else (solution[:columns], factors)
+
+
+def onto_contacts(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                  i: np.ndarray, j: np.ndarray, stable: np.ndarray,
+                  gamma: float | None = None) -> tuple[np.ndarray, float] | None:
+    """The configuration nearest to `positions` at which every pair (i, j) touches, by
+    least-norm Gauss–Newton steps (`least_norm_solve`).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres (mean diameters); the first stable particle stays pinned.
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    i, j : ndarray, shape (M,), int
+        Pairs of stable particles, with independent rows (at most as many as unknowns).
+    stable : ndarray, shape (N,), bool
+    gamma : float or None
+        The inflation at which the pairs touch (|r_c|²/σ_c² = Γ); None: Γ is an unknown too
+        (each step is least-norm in positions and Γ), from 1.
+
+    Returns
+    -------
+    (ndarray, float) or None
+        The positions, shape (N, d), wrapped into the box, and Γ, once every
+        | |r_c|²/σ_c² − Γ | ≤ `RESIDUAL_TOLERANCE`; None when the steps exceed
+        `MAX_CORRECTION`, do not converge in `MAX_ITERATIONS`, or the rows are dependent.
+    """
+    n, d = positions.shape
+    movable = np.flatnonzero(stable)[1:]
+    sigma = 0.5 * (diameters[i] + diameters[j])
+    moved = positions.copy()
+    inflation = 1.0 if gamma is None else gamma
+    factors = None
+
+    def residual_and_vectors() -> tuple[np.ndarray, np.ndarray]:
+        vectors = minimum_image(moved[i] - moved[j], box)
+        return np.einsum("md,md->m", vectors, vectors) / sigma**2 - inflation, vectors
+
+    for _ in range(MAX_ITERATIONS):
+        residual, vectors = residual_and_vectors()
+        if float(np.abs(residual).max(initial=0.0)) <= RESIDUAL_TOLERANCE:
+            return wrap(moved, box), inflation
+        jacobian = network_jacobian(vectors, sigma, i, j, stable)
+        if gamma is not None:   # Γ held: its column leaves
+            jacobian = jacobian[:, :-1].tocsr()
+        solved = least_norm_solve(jacobian, -residual, factors)
+        if solved is None:
+            return None
+        correction, factors = solved
+        shift = correction[:movable.size * d]
+        largest = float(np.abs(shift).max(initial=0.0))
+        if not largest <= MAX_CORRECTION:
+            return None
+        moved[movable] += shift.reshape(-1, d)
+        if gamma is None:
+            inflation += float(correction[-1])
+        if largest < STEP_TOLERANCE:
+            residual, _ = residual_and_vectors()
+            worst = float(np.abs(residual).max(initial=0.0))
+            return (wrap(moved, box), inflation) if worst <= RESIDUAL_TOLERANCE else None
+    return None
+
+
 def find_closing_pairs(search: NeighborSearch, keys: np.ndarray, stable: np.ndarray,
-                       mode: np.ndarray) -> tuple[Pairs, np.ndarray, np.ndarray] | None:
+                       mode: np.ndarray, gamma_rate: float = 1.0
+                       ) -> tuple[Pairs, np.ndarray, np.ndarray] | None:
     """The ratio test: the pairs of stable particles outside a network (pair keys
     i N + j, shape (M,)) that close along its floppy mode, in the order to try them
     (Harris's choice first, `_harris_choice`, then by step and key).
 
-    Pairs within `NEAR_GAP` of contact are read first, farther ones (up to `MAX_NEAR_GAP`)
-    while the first step could close a pair beyond them (`_reach`).
+    Pairs within `NEAR_GAP` of contact are read first, farther ones (up to `MAX_NEAR_GAP`,
+    and within half the smallest periodic side) while the first step could close a pair
+    beyond them (`_reach`).
+
+    Parameters
+    ----------
+    mode : ndarray, shape (N, d)
+        The displacement of every particle per unit step (mean diameters).
+    gamma_rate : float
+        dΓ per unit step (Γ relative to the inflation of `search`'s diameters): 1 for a mode
+        normalised to dΓ = 1, the steps being inflations; a singular network's null vector
+        (`_repair_singular`) may have a small or vanishing one.
 
     Returns
     -------
     (Pairs, ndarray, ndarray) or None
-        The pairs read, their inflation steps δ_q (+inf for pairs that open), and the
-        indices of the closing pairs in the order to try; None when no pair closes.
+        The pairs read, their steps δ_q (+inf for pairs that open), and the indices of the
+        closing pairs in the order to try; None when no pair closes.
     """
     n = stable.shape[0]
+    # pairs are read within half the periodic box (a minimum image), NEAR_GAP short of it
+    widest = min(MAX_NEAR_GAP,
+                 search.half_period / float(search.diameters.max()) - 1.0 - NEAR_GAP)
     near_gap = NEAR_GAP
     while True:
         near = outside_pairs(search, keys, stable, near_gap)
-        steps = _closing_steps(near, mode)
+        steps = _closing_steps(near, mode, gamma_rate)
         order = np.lexsort((near.i * n + near.j, steps))   # smallest step, then Bland
         order = order[np.isfinite(steps[order])]
-        if order.size and _reach(steps[order[0]], mode, search) < near_gap:
+        if order.size and _reach(steps[order[0]], mode, search, gamma_rate) < near_gap:
             break
-        if near_gap >= MAX_NEAR_GAP:
+        if near_gap >= widest:
             return None
-        near_gap = min(near_gap * NEAR_GAP_WIDENING, MAX_NEAR_GAP)
-    first = _harris_choice(near, mode, steps, order)
+        near_gap = min(near_gap * NEAR_GAP_WIDENING, widest)
+    first = _harris_choice(near, mode, steps, order, gamma_rate)
     return near, steps, np.concatenate([[first], order[order != first]])
 
 
 def _harris_choice(pairs: Pairs, mode: np.ndarray, steps: np.ndarray,
-                   order: np.ndarray) -> int:
+                   order: np.ndarray, gamma_rate: float = 1.0) -> int:
     """The pair that closes first, by Harris's ratio test: among the pairs that close before
     the smallest step relaxed by `HARRIS_SLACK` (pairs within round-off of contact close
     together), the one that closes fastest along the mode, so that the new network is the
     best conditioned; ties to the smallest pair key (`order` is by step, then key)."""
-    rates = -_closing_rates(pairs.subset(order), mode)
+    rates = -_closing_rates(pairs.subset(order), mode, gamma_rate)
     phi = (pairs.distances[order] / pairs.sigma[order]) ** 2 - 1.0
     relaxed = float(np.min((np.maximum(phi, 0.0) + HARRIS_SLACK) / rates))
     within = steps[order] <= relaxed
     return int(order[np.flatnonzero(within)[np.argmax(rates[within])]])
 
 
-def _closing_rates(pairs: Pairs, mode: np.ndarray) -> np.ndarray:
-    """dΦ_q/dΓ along a floppy mode, shape (P,): Φ_q = |r_q|²/σ_q² − Γ (negative: closing)."""
+def _closing_rates(pairs: Pairs, mode: np.ndarray, gamma_rate: float = 1.0) -> np.ndarray:
+    """dΦ_q per unit step along a mode whose Γ grows by `gamma_rate` per step, shape (P,):
+    Φ_q = |r_q|²/σ_q² − Γ (negative: closing)."""
     relative = mode[pairs.i] - mode[pairs.j]
-    return 2.0 * np.einsum("pd,pd->p", pairs.vectors, relative) / pairs.sigma**2 - 1.0
+    return 2.0 * np.einsum("pd,pd->p", pairs.vectors, relative) / pairs.sigma**2 - gamma_rate
 
 
-def _closing_steps(pairs: Pairs, mode: np.ndarray) -> np.ndarray:
-    """The inflation step δ_q = Φ_q / (−dΦ_q/dΓ) at which each pair closes along the mode
+def _closing_steps(pairs: Pairs, mode: np.ndarray, gamma_rate: float = 1.0) -> np.ndarray:
+    """The step δ_q = Φ_q / (−dΦ_q/dstep) at which each pair closes along the mode
     (linearised), shape (P,); +inf for pairs that open. Pairs that already touch close at 0."""
-    rates = _closing_rates(pairs, mode)
+    rates = _closing_rates(pairs, mode, gamma_rate)
     phi = (pairs.distances / pairs.sigma) ** 2 - 1.0
     steps = np.full(len(pairs), np.inf)
     closing = rates < 0
@@ -662,12 +988,13 @@ def _closing_steps(pairs: Pairs, mode: np.ndarray) -> np.ndarray:
     return steps
 
 
-def _reach(step: float, mode: np.ndarray, search: NeighborSearch) -> float:
-    """An upper bound on how much a relative gap can shrink over an inflation step along the
-    mode: the growth of the diameters plus twice the largest move, relative to the smallest
+def _reach(step: float, mode: np.ndarray, search: NeighborSearch,
+           gamma_rate: float = 1.0) -> float:
+    """An upper bound on how much a relative gap can shrink over a step along the mode: the
+    growth of the diameters plus twice the largest move, relative to the smallest
     diameter."""
     largest_move = float(np.sqrt(np.einsum("nd,nd->n", mode, mode)).max(initial=0.0))
-    return step * (0.5 + 2.0 * largest_move / float(search.diameters.min()))
+    return step * (0.5 * abs(gamma_rate) + 2.0 * largest_move / float(search.diameters.min()))
 
 
 def outside_pairs(search: NeighborSearch, keys: np.ndarray, stable: np.ndarray,
@@ -720,6 +1047,8 @@ def describe_path(path: PivotPath) -> str:
     listed = ", ".join(f"{swap.released}->{swap.closed}" for swap in path.swaps[:LISTED_SWAPS])
     more = f" and {path.pivots - LISTED_SWAPS} more" if path.pivots > LISTED_SWAPS else ""
     degenerate = f" ({path.degenerate} degenerate)" if path.degenerate else ""
+    if path.repairs:
+        degenerate += " (the first repaired a singular network)"
     if not path.pivots:
         return f"{closed}no contact pivot was needed ({path.seconds:.2f} s)"
     return (f"{closed}{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s "
