@@ -118,8 +118,10 @@ LEAVING_TRIES = 5
 #: that a repair is reproducible.
 BORDER_SEED = 34
 #: A network's Jacobian is singular (and its start is repaired, `_repair_singular`) when
-#: its null vector t leaves |J t| below this fraction of |J| |t| (largest row): the chord
-#: steps of Newton from a Jacobian that near singular exceed `newton.MAX_CORRECTION`.
+#: the null vector t of the bordered system leaves |J t| below this fraction of |J| |t|
+#: (largest row). A floppy cluster leaves round-off; a regular contact Jacobian leaves far
+#: more (its smallest singular value is ~1e-4 of its largest in a jammed packing of 64
+#: spheres).
 SINGULAR_RESIDUAL = 1e-8
 #: The sign rule of a repair is undecided when sᵀΦ (or its curvature along the floppy mode)
 #: is below this fraction of the same sum with |s| and |Φ|: round-off, the redundant contacts
@@ -178,7 +180,7 @@ class PivotPath:
         The jamming point (positions, diameters, forces), with its growth and largest
         displacement measured from the start of the path.
     swaps : tuple of Swap
-        The pivots in order.
+        The pivots in order (the repair of a singular start first, `Swap.repaired`).
     factorizations : int
         Sparse LU factorisations (directions and Newton solves).
     seconds : float
@@ -596,8 +598,9 @@ def singular_vectors(jacobian: sp.spmatrix) -> tuple[np.ndarray, np.ndarray] | N
         return None
     unit = np.zeros(m + 1)
     unit[m] = 1.0
-    null = refined_solve(bordered.tocsr(), factors, unit)
-    stress = refined_solve(bordered.T.tocsr(), _TransposedFactors(factors), unit)
+    null = refined_solve(bordered.tocsr(), factors, unit, normwise=True)
+    stress = refined_solve(bordered.T.tocsr(), _TransposedFactors(factors), unit,
+                           normwise=True)
     if null is None or stress is None:
         return None
     null, stress = null[:m], stress[:m]
@@ -618,9 +621,9 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     change to first order along any motion (sᵀJ = 0), so wherever A's contacts close,
     s_c Φ_c = sᵀΦ: from the start Φ⁰ to first order, and along t by λ²/2 Σ_k s_k
     2|Δt_k|²/σ_k² more at a step λ (Δt_k the relative displacement of contact k). The sign
-    rule: s is oriented so that sᵀΦ⁰ > 0 (a start whose contacts all close, to
-    `RESIDUAL_TOLERANCE`: so that the second-order term is positive), and c is a contact
-    with s_c ≥ `REDUNDANT_RATIO` (largest first: the best-conditioned release); c then
+    rule: s is oriented so that sᵀΦ⁰ > 0, or, at a start whose contacts all close (to
+    `RESIDUAL_TOLERANCE`), so that the second-order term is positive; c is a contact with
+    s_c ≥ `REDUNDANT_RATIO` (largest first: the best-conditioned release), and c then
     opens. When both terms vanish (`UNDECIDED_SIGN`: the floppy cluster is apart from the
     redundant contacts, which the mode does not move), c is the largest |s_c|, and it stays
     at contact.
@@ -648,7 +651,8 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     -------
     ((vertex, swap, factorisations) or None, str)
         The first vertex of the path and its swap (`Swap.repaired`, its growth measured
-        from where A's contacts closed), or None and why.
+        from where A's contacts closed), with the sparse LUs of the bordered system and of
+        Newton (the least-norm steps' are not counted); or None and why.
     """
     n, d = positions.shape
     vectors = minimum_image(positions[i] - positions[j], box)
@@ -678,7 +682,7 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     else:   # the mode does not move the redundant contacts (a separate floppy cluster)
         oriented = np.abs(stress)
     opening = np.flatnonzero(oriented >= REDUNDANT_RATIO)
-    solves = 0
+    solves = 1   # the bordered system
     for released in opening[np.argsort(-oriented[opening], kind="stable")][:REPAIR_TRIES]:
         keep = np.ones(i.shape[0], dtype=bool)
         keep[released] = False
@@ -691,47 +695,53 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
             continue
         near, steps, candidates = ratio_test
         for closing in candidates[:RATIO_CANDIDATES]:
-            step = _repaired_vertex(start, i, j, stable, int(released), near, closing,
-                                    start.positions + float(steps[closing]) * mode)
-            if step is not None:
-                vertex, swap, made = step
-                return (vertex, swap, solves + made), ""
-            solves += 1
+            repaired, made = _repaired_vertex(start, i, j, stable, int(released), near,
+                                              closing,
+                                              start.positions + float(steps[closing]) * mode)
+            solves += made
+            if repaired is not None:
+                return (*repaired, solves), ""
     return None, "no redundant contact and closing pair gave a vertex"
 
 
 def _repaired_vertex(start: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: np.ndarray,
                      released: int, near: Pairs, closing: int, predicted: np.ndarray
-                     ) -> tuple[_Vertex, Swap, int] | None:
+                     ) -> tuple[tuple[_Vertex, Swap] | None, int]:
     """The vertex of a repair (`_repair_singular`): Newton on the network with contact
-    `released` swapped for pair `closing` of `near`, from `predicted`; None when Newton
-    fails, Γ decreased from `start`, another pair overlaps, or a cage closed on its rattler.
+    `released` swapped for pair `closing` of `near`, from `predicted`.
+
+    Returns
+    -------
+    ((vertex, swap) or None, int)
+        None when Newton fails, Γ decreased from `start`, another pair overlaps, or a cage
+        closed on its rattler; and Newton's factorisations (one when it failed).
     """
     n, d = start.positions.shape
     i_new, j_new = i.copy(), j.copy()
     i_new[released], j_new[released] = near.i[closing], near.j[closing]
     refined = refine_isostatic(predicted, start.diameters, start.box, i_new, j_new, stable)
     if refined is None:
-        return None
+        return None, 1
     growth = float(np.mean(refined.diameters / start.diameters)) - 1.0
     if growth < -DEGENERATE_STEP:
-        return None
+        return None, refined.factorizations
     now_rattlers, kept = remove_rattlers(n, d, i_new, j_new)
     i_new, j_new, now_stable = i_new[kept], j_new[kept], ~now_rattlers
     refined = replace(refined, forces=refined.forces[kept])
     moved = NeighborSearch(refined.positions, refined.diameters, start.box)
     if np.any(outside_pairs(moved, i_new * n + j_new, now_stable, NEAR_GAP).gaps
               < -NEWTON_OVERLAP_TOLERANCE):
-        return None
+        return None, refined.factorizations
     separated = _rattlers_out_of_the_way(moved, refined, now_stable)
     if separated is None:
-        return None
+        return None, refined.factorizations
     basis = (_Basis(*refined.factorization, stable) if refined.factorization is not None
              and np.array_equal(now_stable, stable) else None)
     swap = Swap((int(i[released]), int(j[released])),
                 (int(near.i[closing]), int(near.j[closing])), max(growth, 0.0),
                 int(np.count_nonzero(now_rattlers & stable)), repaired=True)
-    return _Vertex(i_new, j_new, now_stable, separated, basis), swap, refined.factorizations
+    return (_Vertex(i_new, j_new, now_stable, separated, basis), swap), refined.factorizations
+
 
 def _rattlers_out_of_the_way(search: NeighborSearch, refined: Refinement,
                              stable: np.ndarray) -> Refinement | None:
@@ -813,21 +823,26 @@ def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: n
     return mode, made
 
 
-def refined_solve(matrix: sp.csr_matrix, factors: Factors,
-                   rhs: np.ndarray) -> np.ndarray | None:
+def refined_solve(matrix: sp.csr_matrix, factors: Factors, rhs: np.ndarray,
+                  normwise: bool = False) -> np.ndarray | None:
     """The solution of matrix x = rhs from factors of a nearby matrix, by iterative
     refinement to a componentwise backward error of `REFINEMENT_TOLERANCE` (as
-    `calippso.newton` does for the forces); None when `MAX_REFINEMENTS` steps do not reach it."""
+    `calippso.newton` does for the forces); None when `MAX_REFINEMENTS` steps do not reach it.
+
+    With `normwise`, the backward error is that of the largest row instead: for a solution
+    that vanishes on most rows' support (a localised null vector), where those rows hold
+    round-off of nothing."""
     magnitudes = abs(matrix)
     solution = factors.solve(rhs)
     for _ in range(MAX_REFINEMENTS + 1):
         if not np.all(np.isfinite(solution)):
             return None
-        remainder = rhs - matrix @ solution
-        if np.all(np.abs(remainder) <= REFINEMENT_TOLERANCE
-                  * (magnitudes @ np.abs(solution) + np.abs(rhs))):
+        remainder = np.abs(rhs - matrix @ solution)
+        scale = magnitudes @ np.abs(solution) + np.abs(rhs)
+        if (remainder.max(initial=0.0) <= REFINEMENT_TOLERANCE * scale.max(initial=0.0)
+                if normwise else np.all(remainder <= REFINEMENT_TOLERANCE * scale)):
             return solution
-        solution = solution + factors.solve(remainder)
+        solution = solution + factors.solve(rhs - matrix @ solution)
     return None
 
 
@@ -876,7 +891,7 @@ def onto_contacts(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
         | |r_c|²/σ_c² − Γ | ≤ `RESIDUAL_TOLERANCE`; None when the steps exceed
         `MAX_CORRECTION`, do not converge in `MAX_ITERATIONS`, or the rows are dependent.
     """
-    n, d = positions.shape
+    d = positions.shape[1]
     movable = np.flatnonzero(stable)[1:]
     sigma = 0.5 * (diameters[i] + diameters[j])
     moved = positions.copy()
