@@ -623,8 +623,8 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     2|Δt_k|²/σ_k² more at a step λ (Δt_k the relative displacement of contact k). The sign
     rule: s is oriented so that sᵀΦ⁰ > 0, or, at a start whose contacts all close (to
     `RESIDUAL_TOLERANCE`), so that the second-order term is positive; c is a contact with
-    s_c ≥ `REDUNDANT_RATIO` (largest first: the best-conditioned release), and c then
-    opens. When both terms vanish (`UNDECIDED_SIGN`: the floppy cluster is apart from the
+    s_c ≥ `REDUNDANT_RATIO` (those whose particles keep d + 1 contacts first, then the
+    largest s_c: the best-conditioned release), and c then opens. When both terms vanish (`UNDECIDED_SIGN`: the floppy cluster is apart from the
     redundant contacts, which the mode does not move), c is the largest |s_c|, and it stays
     at contact.
 
@@ -682,8 +682,11 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     else:   # the mode does not move the redundant contacts (a separate floppy cluster)
         oriented = np.abs(stress)
     opening = np.flatnonzero(oriented >= REDUNDANT_RATIO)
+    # releases that leave both particles with d + 1 contacts or more (no new rattler) first
+    counts = np.bincount(np.concatenate([i, j]), minlength=n)
+    keeps_both = (counts[i[opening]] > d + 1) & (counts[j[opening]] > d + 1)
     solves = 1   # the bordered system
-    for released in opening[np.argsort(-oriented[opening], kind="stable")][:REPAIR_TRIES]:
+    for released in opening[np.lexsort((-oriented[opening], ~keeps_both))][:REPAIR_TRIES]:
         keep = np.ones(i.shape[0], dtype=bool)
         keep[released] = False
         closing_at = onto_contacts(positions, scaled, box, i[keep], j[keep], stable)
