@@ -6,11 +6,12 @@ import time
 
 import numpy as np
 
+from calippso.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
 from calippso.packing import Packing
 
 from ._checks import check_positive
-from .checkpoint import Checkpoint, digest
 from ._progress import Progress
+from .checkpoint import Checkpoint, digest
 from .initial import start_of
 from .ls import GrowingSpheres
 from .result import GenerationResult, make_history
@@ -20,6 +21,8 @@ __all__ = ["closest_jamming"]
 #: Packing fraction of the Poisson centres MLS starts from when given diameters (the
 #: Baranau–Tallarek protocol's random start).
 START_PHI = 0.3
+#: The boundary kinds `closest_jamming` handles (those of `GrowingSpheres`).
+BOUNDARY_KINDS = (PERIODIC, WALLS, CYLINDER)
 
 
 def closest_jamming(diameters=None, d: int | None = None, *, seed: int = 0,
@@ -29,7 +32,8 @@ def closest_jamming(diameters=None, d: int | None = None, *, seed: int = 0,
                     temperature: float = 0.2, pressure_window: int = 20,
                     max_equilibrations: int = 50, max_windows_per_rate: int = 10_000,
                     max_collisions: int | None = None, progress: bool = False, skin: float = 0.1,
-                    checkpoint=None, checkpoint_every: float = 60.0) -> GenerationResult:
+                    checkpoint=None, checkpoint_every: float = 60.0,
+                    boundaries: Boundaries | None = None) -> GenerationResult:
     """Jam a start while staying in its basin: fast growth first, ever slower near jamming.
 
     The protocol, in event-driven MD (`GrowingSpheres`, as in LS):
@@ -92,6 +96,11 @@ def closest_jamming(diameters=None, d: int | None = None, *, seed: int = 0,
         at once); only `max_collisions` may differ from the first call.
     checkpoint_every : float
         Smallest wall time in seconds between two checkpoint writes (0: every window).
+    boundaries : calippso.Boundaries, optional
+        The container of the Poisson centres made from `diameters`: periodic (None, the
+        default), flat hard walls (`Boundaries.walls`) or a cylinder (`Boundaries.cylinder`),
+        with wall collisions as in `lubachevsky_stillinger`. A `start` brings its own (this
+        must then be None or the same).
 
     Returns
     -------
@@ -106,12 +115,13 @@ def closest_jamming(diameters=None, d: int | None = None, *, seed: int = 0,
     ------
     ValueError
         On non-positive rates, pressure or temperature, final_rate > initial_rate, a
-        max_windows_per_rate that is not a positive integer, or a checkpoint file that
-        belongs to another run.
+        max_windows_per_rate that is not a positive integer, boundaries that contradict the
+        start's, or a checkpoint file that belongs to another run.
     """
     wall = time.perf_counter()
     packing, _ = start_of(diameters, d, start, phi=phi_start, seed=seed,
-                          generator="closest_jamming")
+                          boundaries=boundaries, generator="closest_jamming",
+                          kinds=BOUNDARY_KINDS)
     rate = check_positive(initial_rate, "initial_rate")
     final_rate = check_positive(final_rate, "final_rate")
     if final_rate > rate:
@@ -131,7 +141,8 @@ def closest_jamming(diameters=None, d: int | None = None, *, seed: int = 0,
         "pressure_window": int(pressure_window), "max_equilibrations": int(max_equilibrations),
         "max_windows_per_rate": int(max_windows_per_rate),
         "seed": int(seed), "skin": float(skin),
-        "start": digest(packing.positions, packing.diameters, packing.box)},
+        "start": digest(packing.positions, packing.diameters, packing.box),
+        **({} if packing.boundaries.is_periodic else {"boundaries": str(packing.boundaries)})},
         every=check_positive(checkpoint_every, "checkpoint_every", allow_zero=True))
     limit = np.inf if max_collisions is None else int(max_collisions)
     window = pressure_window * packing.n

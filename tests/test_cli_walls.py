@@ -163,17 +163,18 @@ def test_generators_get_the_boundaries_only_when_they_take_them():
     assert call_with_boundaries(periodic_only, None, 3, None, 3, seed=1) == 1
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["mls", "--n", "16", "--walls", "x"], "--walls x: generators.closest_jamming makes periodic"),
-    (["mls", "--n", "16", "--cylinder", "x,y"], "--cylinder x,y: generators.closest_jamming"),
-])
-def test_a_generator_refuses_a_container_it_cannot_make_in_one_line(tmp_path, capfd, argv,
-                                                                    message):
-    """MLS takes no boundaries, neither walls nor a cylinder. Nothing is written."""
-    code, out, err = _run(capfd, "generate", *argv, "-o", tmp_path / "g.npz", "--quiet")
-    assert code == 1 and out == "" and err.count("\n") == 1
-    assert err.startswith("error: ") and message in err
-    assert not (tmp_path / "g.npz").exists()
+@pytest.mark.parametrize("option", [["--walls", "x"], ["--cylinder", "x,y"]])
+def test_mls_makes_a_packing_in_its_container(tmp_path, capfd, option):
+    """`generate mls --walls x` (or `--cylinder x,y`) writes a jammed packing that carries
+    its container."""
+    code, _out, err = _run(capfd, "generate", "mls", "--n", "32", "--d", "2", *option,
+                          "--final-rate", "0.1", "-o", tmp_path / "g.npz", "--quiet")
+    assert code == 0, err
+    packing = calippso.read(tmp_path / "g.npz")
+    expected = (Boundaries.walls(2, ["x"]) if option[0] == "--walls"
+                else Boundaries.cylinder(2, ["x", "y"]))
+    assert packing.boundaries == expected
+    expected.check(packing.positions, packing.diameters, packing.box)
 
 
 def test_a_quench_between_walls_jams_on_its_own_network(tmp_path, capfd):

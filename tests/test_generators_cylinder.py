@@ -397,6 +397,21 @@ def test_ls_in_a_cylinder_is_certified_by_jam(ls_runs):
     assert result.force_balance <= 1e-12
 
 
+@pytest.mark.parametrize("d, sizes", [(2, dist.bidisperse(64, 1.4)), (3, dist.monodisperse(64))])
+def test_mls_in_a_cylinder_jams_inside_it(d, sizes):
+    """MLS (the closest-jamming protocol) in a cylinder ends jammed inside it, and `jam`
+    certifies the result: isostatic with the cylinder's contacts, balanced."""
+    tube = cylinder_of(d)
+    result = generators.closest_jamming(sizes, d, seed=1, final_rate=1e-2,
+                                        boundaries=tube)
+    assert result.status.startswith("jammed")
+    assert_inside_and_apart(result.packing, tube)
+    jammed = calippso.jam(result.packing)
+    assert_inside_and_apart(jammed.packing, tube)
+    assert jammed.isostatic and jammed.isostaticity_gap == 0
+    assert jammed.force_balance <= 1e-12 and jammed.n_wall_contacts > 0
+
+
 def test_ls_continues_a_cylinder_start_and_keeps_its_cylinder():
     """A start in a cylinder (Poisson points, shrunk to no overlap) is compressed in its own
     container, its box unchanged."""

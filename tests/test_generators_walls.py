@@ -279,12 +279,22 @@ def test_ls_continues_a_walled_start_and_keeps_its_walls():
         generators.lubachevsky_stillinger(start=start, boundaries=Boundaries.walls(2, ["x"]))
 
 
-def test_mls_refuses_a_walled_start():
-    start = generators.poisson(np.ones(64), 3, phi=0.2, seed=1,
-                               boundaries=Boundaries.walls(3, ["x"]))
-    with pytest.raises(ValueError, match="closest_jamming makes periodic packings only, got "
-                                         "walls in x"):
-        generators.closest_jamming(start=start)
+@pytest.mark.parametrize("d, sizes, axes", [(2, dist.bidisperse(64, 1.4), ["x", "y"]),
+                                             (3, dist.monodisperse(64), ["x"])])
+def test_mls_between_walls_jams_inside_its_walls(d, sizes, axes):
+    """MLS (the closest-jamming protocol) compresses in the walls of its Poisson start, ends
+    jammed, and `jam` certifies the result with wall contacts, isostatic under the walled
+    count; a start with its own walls is compressed in them."""
+    walls = Boundaries.walls(d, axes)
+    result = generators.closest_jamming(sizes, d, seed=1, final_rate=1e-2, boundaries=walls)
+    assert result.status.startswith("jammed")
+    assert_inside_and_apart(result.packing, walls)
+    jammed = calippso.jam(result.packing)
+    assert_inside_and_apart(jammed.packing, walls)
+    assert jammed.isostatic and jammed.isostaticity_gap == 0
+    assert jammed.force_balance <= 1e-12 and jammed.n_wall_contacts > 0
+    start = generators.poisson(sizes, d, phi=0.3, seed=2, boundaries=walls)
+    assert generators.closest_jamming(start=start, final_rate=1e-1).packing.boundaries == walls
 
 
 # ------------------------------------------------------------------ force-biased
