@@ -660,6 +660,8 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     scaled = diameters * np.sqrt(float(np.mean(ratios)))   # Γ = 1 at the contacts' mean
     sigma = 0.5 * (scaled[i] + scaled[j])
     jacobian = network_jacobian(vectors, sigma, i, j, stable)
+    if jacobian.shape[0] != jacobian.shape[1]:
+        return None, "the network is not isostatic"
     found = singular_vectors(jacobian)
     if found is None:
         return None, "the Jacobian lacks more than one rank"
@@ -669,6 +671,8 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         return None, "the Jacobian is not singular"
     if null[-1] < 0:   # Γ does not decrease along the mode
         null = -null
+    # a floppy cluster (Γ flat to first order, t_Γ at round-off) may move either way
+    senses = (1.0, -1.0) if null[-1] <= SINGULAR_RESIDUAL else (1.0,)
     mode = np.zeros((n, d))
     mode[np.flatnonzero(stable)[1:]] = null[:-1].reshape(-1, d)
     phi = np.einsum("md,md->m", vectors, vectors) / sigma**2 - 1.0
@@ -693,17 +697,19 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         if closing_at is None:
             continue
         start = NeighborSearch(closing_at[0], scaled * np.sqrt(closing_at[1]), box)
-        ratio_test = find_closing_pairs(start, i * n + j, stable, mode, gamma_rate=null[-1])
-        if ratio_test is None:
-            continue
-        near, steps, candidates = ratio_test
-        for closing in candidates[:RATIO_CANDIDATES]:
-            repaired, made = _repaired_vertex(start, i, j, stable, int(released), near,
-                                              closing,
-                                              start.positions + float(steps[closing]) * mode)
-            solves += made
-            if repaired is not None:
-                return (*repaired, solves), ""
+        for sign in senses:
+            ratio_test = find_closing_pairs(start, i * n + j, stable, sign * mode,
+                                            gamma_rate=sign * null[-1])
+            if ratio_test is None:
+                continue
+            near, steps, candidates = ratio_test
+            for closing in candidates[:RATIO_CANDIDATES]:
+                predicted = start.positions + sign * float(steps[closing]) * mode
+                repaired, made = _repaired_vertex(start, i, j, stable, int(released), near,
+                                                  closing, predicted)
+                solves += made
+                if repaired is not None:
+                    return (*repaired, solves), ""
     return None, "no redundant contact and closing pair gave a vertex"
 
 

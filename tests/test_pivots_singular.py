@@ -149,6 +149,41 @@ def test_a_singular_start_is_repaired_and_the_path_ends_certified(source, droppe
         assert abs(change) < NEIGHBOURING_PHI
 
 
+@pytest.fixture(scope="module")
+def returning_source():
+    """Another LS packing at p = 1e7 (d = 3, N = 64, seed 15) jammed by the LP path: from
+    its singular networks the path climbs back to it."""
+    import generators
+    from calippso import jam
+
+    sizes = generators.diameters.monodisperse(64)
+    start = generators.lubachevsky_stillinger(sizes, d=3, target_pressure=1e7,
+                                              seed=15).packing
+    return jam(start, network_first="off")
+
+
+@pytest.mark.parametrize("dropped", list(itertools.combinations(range(4), 2)))
+def test_a_repaired_path_returns_to_the_source(returning_source, dropped):
+    """The same singular networks of another packing (added pairs at relative gaps 3e-4 and
+    1e-3): the repair and the pivots end at the source packing itself, its network and its
+    φ_J to `SAME_PHI`."""
+    source = returning_source
+    assert_jammed(source)
+    positions, diameters, box = in_mean_diameters(source.packing)
+    network, p = singular_network(source, dropped)
+    path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
+                                     source.rattlers)
+    assert path is not None and path.jammed, failure
+    assert path.swaps[0].repaired and p in path.swaps[0].closed
+    assert all(swap.growth >= 0 for swap in path.swaps)
+    assert same_network(np.column_stack([path.i, path.j]), source.contacts)
+    np.testing.assert_array_equal(path.rattlers, source.rattlers)
+    phi = Packing(positions, diameters, box).phi
+    assert abs(Packing(path.refinement.positions, path.refinement.diameters, box).phi
+               - phi) < SAME_PHI * phi
+    assert certified_again(path, box)
+
+
 def test_a_singular_vertex_is_repaired_with_gamma_growing(source):
     """A start where every contact of the singular network closes (a singular vertex, made by
     growing one particle until a near pair touches): the repair's Γ does not decrease from
