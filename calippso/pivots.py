@@ -121,7 +121,8 @@ BORDER_SEED = 34
 #: the null vector t of the bordered system leaves |J t| below this fraction of |J| |t|
 #: (largest row). A floppy cluster leaves round-off; a regular contact Jacobian leaves far
 #: more (its smallest singular value is ~1e-4 of its largest in a jammed packing of 64
-#: spheres).
+#: spheres). A null vector (largest component 1) whose dΓ is below it leaves Γ flat to
+#: first order: a floppy cluster.
 SINGULAR_RESIDUAL = 1e-8
 #: The sign rule of a repair is undecided when sᵀΦ (or its curvature along the floppy mode)
 #: is below this fraction of the same sum with |s| and |Φ|: round-off, the redundant contacts
@@ -130,8 +131,8 @@ UNDECIDED_SIGN = 1e-8
 #: Contacts whose self-stress is below this fraction of the largest are not opened by a
 #: repair: without them the network would stay nearly singular.
 REDUNDANT_RATIO = 1e-3
-#: Redundant contacts tried in turn (largest self-stress first) by a repair, each with the
-#: first pairs of the ratio test; each try is a Newton solve.
+#: Redundant contacts tried in turn by a repair (`_repair_singular`), each with the first
+#: pairs of the ratio test; each try is a Newton solve.
 REPAIR_TRIES = 3
 
 
@@ -155,7 +156,7 @@ class Swap:
     repaired : bool
         The swap repaired a singular start (`_repair_singular`): `released` is the
         redundant contact opened, `closed` the pair that closed the floppy mode, and
-        `growth` is measured from the mean inflation of the start's contacts.
+        `growth` is measured from where the network without the released contact closes.
     """
 
     released: tuple[int, int]
@@ -624,18 +625,19 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     rule: s is oriented so that sᵀΦ⁰ > 0, or, at a start whose contacts all close (to
     `RESIDUAL_TOLERANCE`), so that the second-order term is positive; c is a contact with
     s_c ≥ `REDUNDANT_RATIO` (those whose particles keep d + 1 contacts first, then the
-    largest s_c: the best-conditioned release), and c then opens. When both terms vanish (`UNDECIDED_SIGN`: the floppy cluster is apart from the
-    redundant contacts, which the mode does not move), c is the largest |s_c|, and it stays
-    at contact.
+    largest s_c: the best-conditioned release), and c then opens. When both terms vanish
+    (`UNDECIDED_SIGN`: the floppy cluster is apart from the redundant contacts, which the
+    mode does not move), c is chosen by |s_c| in the same order, and it stays at contact.
 
     A's contacts close by least-norm steps in positions and Γ (`onto_contacts`); from there
-    t is followed with Γ not decreasing (t_Γ ≥ 0; a floppy cluster has t_Γ = 0 and Γ moves
-    at second order) and the ratio test (`find_closing_pairs`, c left out) gives the pair k
-    that closes first. Newton solves A ∪ {k} from the predicted point, which is accepted
-    when Γ did not decrease from where A's contacts closed, no other pair (c included)
-    overlaps, and the rattlers clear their cages; particles that A ∪ {k} leaves with d
-    contacts (their forces vanish) become rattlers with their contacts. Otherwise the next
-    pair of the ratio test, then the next redundant contact, is tried.
+    t is followed with Γ not decreasing (t_Γ ≥ 0; a floppy cluster has t_Γ = 0, Γ moves at
+    second order only, and it is followed both ways) and the ratio test
+    (`find_closing_pairs`, c left out) gives the pair k that closes first. Newton solves
+    A ∪ {k} from the predicted point, which is accepted when Γ did not decrease from where
+    A's contacts closed, no other pair (c included) overlaps, and the rattlers clear their
+    cages; particles that A ∪ {k} leaves with d contacts (their forces vanish) become
+    rattlers with their contacts. Otherwise the next pair of the ratio test, then the next
+    redundant contact, is tried.
 
     Parameters
     ----------
@@ -846,12 +848,12 @@ def refined_solve(matrix: sp.csr_matrix, factors: Factors, rhs: np.ndarray,
     for _ in range(MAX_REFINEMENTS + 1):
         if not np.all(np.isfinite(solution)):
             return None
-        remainder = np.abs(rhs - matrix @ solution)
-        scale = magnitudes @ np.abs(solution) + np.abs(rhs)
-        if (remainder.max(initial=0.0) <= REFINEMENT_TOLERANCE * scale.max(initial=0.0)
-                if normwise else np.all(remainder <= REFINEMENT_TOLERANCE * scale)):
+        remainder = rhs - matrix @ solution
+        error, scale = np.abs(remainder), magnitudes @ np.abs(solution) + np.abs(rhs)
+        if (error.max(initial=0.0) <= REFINEMENT_TOLERANCE * scale.max(initial=0.0)
+                if normwise else np.all(error <= REFINEMENT_TOLERANCE * scale)):
             return solution
-        solution = solution + factors.solve(rhs - matrix @ solution)
+        solution = solution + factors.solve(remainder)
     return None
 
 
