@@ -37,7 +37,9 @@ repaired first (`_repair_singular`): one sparse LU of the bordered Jacobian give
 mode t and its self-stress s (`singular_vectors`); a contact that s marks as redundant opens
 (the sign of s chosen so that it opens, not overlaps), the network closes without it, and t
 is followed with Γ not decreasing until the ratio test closes a pair. That swap is the
-path's first (`Swap.repaired`), and the ordinary pivots go on from its vertex.
+path's first (`Swap.repaired`), and the ordinary pivots go on from its vertex. A vertex
+whose every release leaves a singular network (Newton solved a singular network on factors
+with perturbed pivots, and its forces are not unique) is repaired the same way.
 
 Γ never decreases, so the path can only revisit a network through degenerate pivots (where
 the closing pair already touches); Bland's rule and a record of the networks seen since Γ
@@ -109,6 +111,10 @@ HARRIS_SLACK = 1e-12
 #: Pairs of the ratio test tried in turn, when Newton's vertex for the first one overlaps
 #: another pair (the curve is not the line of the prediction).
 RATIO_CANDIDATES = 4
+#: Why a pivot failed when the network without the released contact is singular (Γ cannot
+#: grow along its floppy modes); when every release fails so, the vertex's own network is
+#: singular and is repaired (`_repair_singular`).
+SINGULAR_RELEASE = "the network without the released contact is singular"
 #: Contacts with non-positive forces tried in turn (most negative first) when releasing one
 #: gives no pivot: its released network is singular (a floppy cluster held by a redundant
 #: contact), or its floppy mode closes no pair. Any of them may leave: Γ grows along each.
@@ -154,7 +160,8 @@ class Swap:
         Rattlers whose cage closed along the floppy mode (they join the network with d + 1
         contacts; `closed` is the first of them).
     repaired : bool
-        The swap repaired a singular start (`_repair_singular`): `released` is the
+        The swap repaired a singular network (`_repair_singular`: the start, or a vertex
+        that Newton solved on factors with perturbed pivots): `released` is the
         redundant contact opened, `closed` the pair that closed the floppy mode, and
         `growth` is measured from where the network without the released contact closes.
     """
@@ -181,7 +188,7 @@ class PivotPath:
         The jamming point (positions, diameters, forces), with its growth and largest
         displacement measured from the start of the path.
     swaps : tuple of Swap
-        The pivots in order (the repair of a singular start first, `Swap.repaired`).
+        The pivots in order (with the repairs of singular networks, `Swap.repaired`).
     factorizations : int
         Sparse LU factorisations (directions and Newton solves).
     seconds : float
@@ -317,7 +324,8 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     refined : Refinement, optional
         Newton's solution of the network from `positions`, when already computed. Without
         it Newton solves the network; when it cannot (a singular Jacobian), the network is
-        repaired (`_repair_singular`), and that repair is the path's first pivot.
+        repaired (`_repair_singular`), and that repair is the path's first pivot. A vertex
+        whose every release leaves a singular network is repaired the same way.
     max_pivots : int
         Pivots taken at most (a repair counts as one).
 
@@ -372,6 +380,7 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
             return ended(True), ""
         if len(swaps) >= max_pivots:
             return ended(False), f"no jamming point within {max_pivots} pivots"
+        failures = set()
         for released in _leaving_contacts(vertex, bland=degenerate)[:LEAVING_TRIES]:
             step, failure = _pivot(search, vertex, int(released))
             if step is None and failure == CAGE_CLOSED:
@@ -379,6 +388,14 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
                 step, failure = _pivot(search, vertex, int(released), attached=True)
             if step is not None:
                 break
+            failures.add(failure)
+        if step is None and failures == {SINGULAR_RELEASE}:
+            # every release leaves a singular network: the vertex's own is singular (Newton
+            # ran on factors with perturbed pivots, and its forces are not unique)
+            refinement = vertex.refinement
+            step, why = _repair_singular(refinement.positions, refinement.diameters, box,
+                                         vertex.i, vertex.j, vertex.stable)
+            failure = failure if step is not None else f"{failure}; no repair: {why}"
         if step is None:
             return (ended(False) if swaps else None), failure
         next_vertex, swap, solves = step
@@ -430,7 +447,7 @@ def _pivot(search: NeighborSearch, vertex: _Vertex, released: int,
         basis, swapped = None, ()
     mode = _floppy_mode(search, rows_i, rows_j, stable, swap_row, basis, swapped)
     if mode is None:
-        return None, "the network without the released contact is singular"
+        return None, SINGULAR_RELEASE
     direction, made = mode
     solves = 0
     if made is not None:   # K was factorised: the basis of this pivot and the next ones
@@ -1074,7 +1091,7 @@ def describe_path(path: PivotPath) -> str:
     more = f" and {path.pivots - LISTED_SWAPS} more" if path.pivots > LISTED_SWAPS else ""
     degenerate = f" ({path.degenerate} degenerate)" if path.degenerate else ""
     if path.repairs:
-        degenerate += " (the first repaired a singular network)"
+        degenerate += f" ({path.repairs} repairing a singular network)"
     if not path.pivots:
         return f"{closed}no contact pivot was needed ({path.seconds:.2f} s)"
     return (f"{closed}{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s "

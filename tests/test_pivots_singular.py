@@ -15,10 +15,11 @@ import itertools
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from calippso import Packing
 from calippso.neighbors import NeighborSearch
-from calippso.newton import network_jacobian, refine_isostatic
+from calippso.newton import Refinement, network_jacobian, refine_isostatic
 from calippso.packing import minimum_image
 from calippso.pivots import pivot_to_jamming, singular_vectors
 
@@ -184,43 +185,79 @@ def test_a_repaired_path_returns_to_the_source(returning_source, dropped):
     assert certified_again(path, box)
 
 
-def test_a_singular_vertex_is_repaired_with_gamma_growing(source):
-    """A start where every contact of the singular network closes (a singular vertex, made by
-    growing one particle until a near pair touches): the repair's Γ does not decrease from
-    it, and the path ends certified above it."""
-    positions, diameters, box = in_mean_diameters(source.packing)
-    p, own = floppy_particle(source)
+def singular_vertex(result) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """A configuration where every contact of a singular network closes: p held by d
+    contacts and one near pair added (an isostatic network), one particle grown until a
+    second near pair touches at its Newton point, then one of p's contacts swapped for that
+    pair. The first such vertex at which no other pair overlaps: positions (N, d),
+    diameters (N,), the network (M, 2) and p."""
+    positions, diameters, box = in_mean_diameters(result.packing)
+    p, own = floppy_particle(result)
+    added, _ = near_pairs_apart_from(positions, diameters, box, result.contacts, p,
+                                     result.rattlers)
     for first, second in itertools.permutations(own, 2):
-        keep = np.ones(source.contacts.shape[0], dtype=bool)
+        keep = np.ones(result.contacts.shape[0], dtype=bool)
         keep[first] = False
-        added, _ = near_pairs_apart_from(positions, diameters, box, source.contacts, p,
-                                         source.rattlers)
-        held = np.concatenate([source.contacts[keep], added[:1]])   # p held by d contacts
+        held = np.concatenate([result.contacts[keep], added[:1]])   # p held by d contacts
         vertex = refine_isostatic(positions, diameters, box, held[:, 0], held[:, 1],
-                                  ~source.rattlers)
+                                  ~result.rattlers)
         if vertex is None:
             continue
         moved, _ = near_pairs_apart_from(vertex.positions, vertex.diameters, box, held, p,
-                                         source.rattlers)
-        start = vertex_touching(positions, diameters, box, held, source.rattlers,
+                                         result.rattlers)
+        start = vertex_touching(positions, diameters, box, held, result.rattlers,
                                 tuple(moved[0]))
         if start is None:
             continue
-        network = np.concatenate([held[np.any(held != source.contacts[second], axis=1)],
+        network = np.concatenate([held[np.any(held != result.contacts[second], axis=1)],
                                   moved[:1]])
-        _, gaps = near_pairs_apart_from(start.positions, start.diameters, box, network,
-                                             -1, source.rattlers)
-        if np.any(gaps < -ROUND_OFF):   # the start must be a feasible vertex
-            continue
-        path, failure = pivot_to_jamming(start.positions, start.diameters, box,
-                                         network[:, 0], network[:, 1], source.rattlers)
-        assert path is not None and path.jammed, failure
-        assert path.swaps[0].repaired and p in path.swaps[0].closed
-        assert all(swap.growth >= 0 for swap in path.swaps)
-        assert path.refinement.sqrt_gamma_minus_1 >= 0   # measured from the singular vertex
-        assert certified_again(path, box)
-        return
+        _, gaps = near_pairs_apart_from(start.positions, start.diameters, box, network, -1,
+                                        result.rattlers)
+        if np.all(gaps >= -ROUND_OFF):   # a feasible vertex
+            return start.positions, start.diameters, network, p
     pytest.fail("no singular vertex without overlap was made")
+
+
+def test_a_singular_vertex_is_repaired_with_gamma_growing(source):
+    """A start where every contact of the singular network closes (a singular vertex): the
+    repair's Γ does not decrease from it, and the path ends certified above it."""
+    _, _, box = in_mean_diameters(source.packing)
+    positions, diameters, network, p = singular_vertex(source)
+    path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
+                                     source.rattlers)
+    assert path is not None and path.jammed, failure
+    assert path.swaps[0].repaired and p in path.swaps[0].closed
+    assert all(swap.growth >= 0 for swap in path.swaps)
+    assert path.refinement.sqrt_gamma_minus_1 >= 0   # measured from the singular vertex
+    assert certified_again(path, box)
+
+
+def test_a_singular_vertex_solved_as_if_regular_is_repaired(source):
+    """The same vertex handed to the pivots as a Newton point, with forces that solve
+    Jᵀ f = −e_Γ but are not unique (f + α s for any α: what Newton gives on factors with
+    perturbed pivots), one of them negative. Every release leaves a singular network (the
+    floppy cluster is still there), so the vertex is repaired, and the path ends certified."""
+    _, _, box = in_mean_diameters(source.packing)
+    positions, diameters, network, p = singular_vertex(source)
+    jacobian = jacobian_of(positions, diameters, box, network, source.rattlers).toarray()
+    target = np.zeros(jacobian.shape[0])
+    target[-1] = -1.0
+    forces, *_ = np.linalg.lstsq(jacobian.T, target, rcond=None)
+    assert np.abs(jacobian.T @ forces - target).max() <= ROUND_OFF   # Γ flat: consistent
+    _, stress = singular_vectors(sp.csr_matrix(jacobian))
+    up = stress > 0
+    forces = forces - 2.0 * max(float(np.max(forces[up] / stress[up])), 0.0) * stress
+    assert forces.min() < 0
+    vertex = Refinement(positions=positions, diameters=diameters, forces=forces, iterations=0,
+                        factorizations=0, sqrt_gamma_minus_1=0.0, max_displacement=0.0,
+                        residual=0.0)
+    path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
+                                     source.rattlers, refined=vertex)
+    assert path is not None and path.jammed, failure
+    assert path.repairs == 1 and p in next(swap.closed for swap in path.swaps
+                                           if swap.repaired)
+    assert all(swap.growth >= 0 for swap in path.swaps)
+    assert certified_again(path, box)
 
 
 def test_a_network_newton_cannot_solve_for_another_reason_is_not_repaired(source):
