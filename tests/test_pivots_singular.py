@@ -1,12 +1,16 @@
-"""A singular network (`calippso.pivots`, the repair of a singular start): isostatic by count,
-singular by rank.
+"""A singular network (`calippso.pivots`, the repair of a singular network): isostatic by
+count, singular by rank.
 
 The inputs are made from a jammed packing: a particle p with d + 1 contacts keeps only d − 1
 of them, so that it can roll on them (a floppy mode, with Γ fixed), and two near pairs
 elsewhere join the network, one more than the rest of it can hold (a self-stress). The count
 is isostatic, N_c = d (N_s − 1) + 1, the Jacobian singular: Newton refuses the network, and
 the pivot path used to stop there. The repair opens a redundant contact, closes p's floppy
-mode with the ratio test, and the ordinary pivots go on to a certified jamming point.
+mode with the ratio test, and the ordinary pivots go on to a certified jamming point: from
+the packing's own positions (the source, or a jamming point next to it), from a singular
+vertex (every contact closed, Γ growing from it), and from that vertex handed in as a
+Newton point. A regular network that Newton cannot solve is not repaired, and network first
+hands a network that Newton refuses to the pivots.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from calippso.newton import Refinement, network_jacobian, refine_isostatic
 from calippso.packing import minimum_image
 from calippso.pivots import pivot_to_jamming, singular_vectors
 
-from conftest import assert_jammed
+from conftest import BALANCE_TOLERANCE, assert_jammed
 from test_pivots import certified_again, in_mean_diameters, same_network, vertex_touching
 
 #: Relative round-off of the singular vectors: |J t| and |Jᵀ s| against |J| |t| and |Jᵀ| |s|.
@@ -34,10 +38,8 @@ SINGULAR = 1e-13
 REGULAR = 1e-6
 #: Jamming points that agree in φ to this relative precision are the same.
 SAME_PHI = 1e-9
-#: Two jamming points of the source packing lie this close in φ (relative): `test_pivots`.
+#: Two jamming points of the source packing lie this close in φ (relative).
 NEIGHBOURING_PHI = 1e-7
-#: Force balance of a certified packing (relative to the mean force).
-BALANCE = 1e-12
 #: A start this far (mean diameters, per coordinate) from its jamming point is too far for
 #: Newton: its first correction exceeds `newton.MAX_CORRECTION`.
 FAR_MOVE = 0.05
@@ -127,9 +129,10 @@ def test_a_singular_start_is_repaired_and_the_path_ends_certified(source, droppe
 
     The end is the source packing, or the jamming point next to it: closing the two added
     pairs (relative gaps 5e-5 and 3e-4) moves the repaired vertex ~4e-4 mean diameters from
-    the source, farther than the gaps of its near pairs, and this packing holds two jamming
-    points 4.7e-8 apart in φ there (`test_pivots`); the pivots, which only climb, reach the
-    lower one, as they do from some swapped networks of the same packing."""
+    the source, farther than the gaps of its near pairs, and this packing holds another
+    jamming point 4.7e-8 below it in φ there; the pivots, which only climb from the vertex,
+    reach that one (the LP loop from the same vertex returns to the source), as they may
+    from the swapped networks of `test_pivots`."""
     positions, diameters, box = in_mean_diameters(source.packing)
     network, p = singular_network(source, dropped)
     path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
@@ -292,4 +295,4 @@ def test_network_first_hands_a_network_newton_refuses_to_the_pivots(source, monk
     result = jam(start, network=network, network_first="require")
     assert result.stop_reason is StopReason.CERTIFIED_PIVOTS and result.iterations == 0
     assert_jammed(result)
-    assert result.force_balance <= BALANCE
+    assert result.force_balance <= BALANCE_TOLERANCE
