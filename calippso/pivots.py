@@ -1078,8 +1078,9 @@ def _from_start(refined: Refinement, positions: np.ndarray, diameters: np.ndarra
 
 
 def describe_path(path: PivotPath) -> str:
-    """One clause on a path for the run's notes: floppy modes closed, pivots, time, contacts
-    swapped, largest growth of one pivot."""
+    """One clause on a path for the run's notes: floppy modes closed, pivots (and the repairs
+    of a singular network among them), time, contacts swapped, largest growth of one
+    pivot."""
     closed = ""
     if path.closed:
         pairs = ", ".join(f"{pair}" for pair in path.closed[:LISTED_SWAPS])
@@ -1090,10 +1091,11 @@ def describe_path(path: PivotPath) -> str:
     listed = ", ".join(f"{swap.released}->{swap.closed}" for swap in path.swaps[:LISTED_SWAPS])
     more = f" and {path.pivots - LISTED_SWAPS} more" if path.pivots > LISTED_SWAPS else ""
     degenerate = f" ({path.degenerate} degenerate)" if path.degenerate else ""
-    if path.repairs:
-        degenerate += f" ({path.repairs} repairing a singular network)"
+    repaired = (f"singular Jacobian ({path.repairs} of them opened a redundant contact and "
+                f"closed a floppy mode) and its " if path.repairs else "")
     if not path.pivots:
         return f"{closed}no contact pivot was needed ({path.seconds:.2f} s)"
     return (f"{closed}{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s "
-            f"repaired the network's non-positive forces (released->closed: {listed}{more}; "
-            f"largest growth of one pivot sqrt(Gamma)-1 = {path.largest_growth:.1e})")
+            f"repaired the network's {repaired}non-positive forces (released->closed: "
+            f"{listed}{more}; largest growth of one pivot sqrt(Gamma)-1 = "
+            f"{path.largest_growth:.1e})")

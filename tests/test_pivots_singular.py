@@ -25,7 +25,7 @@ from calippso import Packing
 from calippso.neighbors import NeighborSearch
 from calippso.newton import Refinement, network_jacobian, refine_isostatic
 from calippso.packing import minimum_image
-from calippso.pivots import pivot_to_jamming, singular_vectors
+from calippso.pivots import describe_path, pivot_to_jamming, singular_vectors
 
 from conftest import BALANCE_TOLERANCE, assert_jammed
 from test_pivots import certified_again, in_mean_diameters, same_network, vertex_touching
@@ -140,6 +140,7 @@ def test_a_singular_start_is_repaired_and_the_path_ends_certified(source, droppe
     assert path is not None and path.jammed, failure
     repair = path.swaps[0]
     assert repair.repaired and path.repairs == 1
+    assert "singular Jacobian (1 of them opened a redundant contact" in describe_path(path)
     assert repair.released in {tuple(pair) for pair in network.tolist()}
     assert p not in repair.released and p in repair.closed
     assert all(swap.growth >= 0 for swap in path.swaps)   # Γ never decreases
