@@ -127,8 +127,8 @@ BORDER_SEED = 34
 #: the null vector t of the bordered system leaves |J t| below this fraction of |J| |t|
 #: (largest row). A floppy cluster leaves round-off; a regular contact Jacobian leaves far
 #: more (its smallest singular value is ~1e-4 of its largest in a jammed packing of 64
-#: spheres). A null vector (largest component 1) whose dΓ is below it leaves Γ flat to
-#: first order: a floppy cluster.
+#: spheres). Components of the null vector (largest 1) below it are round-off: the mode
+#: does not move those coordinates (nor Γ, for a floppy cluster).
 SINGULAR_RESIDUAL = 1e-8
 #: The sign rule of a repair is undecided when sᵀΦ (or its curvature along the floppy mode)
 #: is below this fraction of the same sum with |s| and |Φ|: round-off, the redundant contacts
@@ -690,8 +690,9 @@ def _repair_singular(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         return None, "the Jacobian is not singular"
     if null[-1] < 0:   # Γ does not decrease along the mode
         null = -null
-    # a floppy cluster (Γ flat to first order, t_Γ at round-off) may move either way
-    senses = (1.0, -1.0) if null[-1] <= SINGULAR_RESIDUAL else (1.0,)
+    null[np.abs(null) <= SINGULAR_RESIDUAL] = 0.0   # round-off: what the mode does not move
+    # a floppy cluster leaves Γ flat to first order and may move either way
+    senses = (1.0, -1.0) if null[-1] == 0.0 else (1.0,)
     mode = np.zeros((n, d))
     mode[np.flatnonzero(stable)[1:]] = null[:-1].reshape(-1, d)
     phi = np.einsum("md,md->m", vectors, vectors) / sigma**2 - 1.0
