@@ -1,0 +1,64 @@
+"""Contact pivots: an active-set path from a network that is a few contacts off to the jammed one.
+
+The start is an isostatic contact network C at its Newton point (`calippso.newton`): the
+contact equations |r_c|² = Γ σ_c² hold on C, no other pair of stable particles overlaps,
+and the forces y (the self-stress of Jᵀ y = (0, …, 0, −1)) are known, but some are not
+positive. The CALiPPSO LP at that point would move on; here the same move is made on the
+exact geometry, one contact at a time, as the simplex method moves from vertex to vertex:
+
+1. **Certify.** Every force positive: the point is the jamming point (the caller still runs
+   the certificate of `calippso.network.certify_network`).
+2. **Release** a contact c with y_c ≤ 0 (the most negative one, or the next ones when its
+   release gives no pivot; smallest pair key while the path is degenerate, Bland's rule, so
+   that it cannot cycle). The network A = C ∖ c, less
+   the particles it leaves with only d contacts (rattlers, removed recursively with their
+   contacts), has exactly one floppy mode t: J_A t = 0, normalised to dΓ = 1. Along it c
+   opens, because y_cᵀ (J_C t)_c = −dΓ, and Γ grows.
+3. **Ratio test.** Every pair q of stable particles outside A closes along t at the
+   inflation step δ_q = Φ_q / (−∇Φ_q · t), where Φ_q = |r_q|²/σ_q² − Γ. The pair with the
+   smallest step closes first; among pairs within round-off of it, the one that closes
+   fastest (Harris's ratio test, for a well-conditioned network).
+4. **Pivot in.** C' = A ∪ {k} is isostatic again. Newton solves it from the predicted point
+   x + δ_k t, which makes the linear ratio test exact: the new vertex is accepted when no
+   other pair overlaps there and Γ did not decrease; otherwise the next pair of the ratio
+   test is tried. Its forces cost one transposed solve. Repeat from 1.
+
+Rattlers (those of the start, and those a release leaves) carry no force and do not move
+with the floppy modes; when a moved cage overlaps its rattler, the rattler is moved out of
+the way (`calippso.rattlers.separate_rattlers`). When a cage closes on its rattler before
+the pair of the ratio test closes, the rattler joins the network with the d + 1 pairs of its
+cage (d unknowns and d + 1 rows: the released network becomes isostatic again). When the
+cage of a particle that the release left with d contacts closes on it, the pivot is made
+again with that particle kept in the network, held by its d contacts.
+
+A start that Newton cannot solve because its Jacobian is singular (isostatic by count but
+not by rank: a floppy cluster somewhere, balanced by a redundant contact elsewhere) is
+repaired first (`repair.repair_singular`): one sparse LU of the bordered Jacobian gives its floppy
+mode t and its self-stress s (`repair.singular_vectors`); a contact that s marks as redundant opens
+(the sign of s chosen so that it opens, not overlaps), the network closes without it, and t
+is followed with Γ not decreasing until the ratio test closes a pair. That swap is the
+path's first (`Swap.repaired`), and the ordinary pivots go on from its vertex. A vertex
+whose every release leaves a singular network (Newton solved a singular network on factors
+with perturbed pivots, and its forces are not unique) is repaired the same way.
+
+Γ never decreases, so the path can only revisit a network through degenerate pivots (where
+the closing pair already touches); Bland's rule and a record of the networks seen since Γ
+last grew rule that out.
+
+One sparse LU (`calippso.sparse_lu`) serves many pivots: a pivot swaps one row of the
+Jacobian, and solves with the swapped matrix use the stored factors and the Woodbury
+identity (`vertex.Basis`), refined iteratively against the exact matrix; the Jacobian is
+factorised again when 40 rows have been swapped, when the refinement does not reach
+round-off, or when rattlers change the unknowns.
+"""
+
+from .geometry import (MAX_NEAR_GAP, NEAR_GAP, RATIO_CANDIDATES, clear_rattlers,
+                       find_closing_pairs, least_norm_solve, onto_contacts, outside_pairs)
+from .path import CAGE_CLOSED, MAX_PIVOTS, pivot_to_jamming
+from .repair import singular_vectors
+from .vertex import DEGENERATE_STEP, PivotPath, Swap, describe_path
+
+__all__ = ["PivotPath", "Swap", "pivot_to_jamming", "describe_path", "singular_vectors",
+           "least_norm_solve", "onto_contacts", "find_closing_pairs", "outside_pairs",
+           "clear_rattlers", "MAX_PIVOTS", "NEAR_GAP", "MAX_NEAR_GAP", "DEGENERATE_STEP",
+           "RATIO_CANDIDATES", "CAGE_CLOSED"]

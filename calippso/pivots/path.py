@@ -1,0 +1,385 @@
+"""The pivot path: release a contact with a non-positive force, follow the floppy mode, close
+the first pair, and repeat until every force is positive (`pivot_to_jamming`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..neighbors import NeighborSearch
+from ..network import NEWTON_OVERLAP_TOLERANCE
+from ..newton import (MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, network_jacobian,
+                      refine_isostatic)
+from ..packing import minimum_image
+from ..rattlers import remove_rattlers
+from ..sparse_lu import Factors, factorize
+from .geometry import (CAGE_GAP, NEAR_GAP, RATIO_CANDIDATES, closing_rates, find_closing_pairs,
+                       outside_pairs, rattlers_out_of_the_way, refined_solve)
+from .repair import repair_singular
+from .vertex import DEGENERATE_STEP, Basis, PivotPath, Swap, Vertex
+
+__all__ = ["pivot_to_jamming", "MAX_PIVOTS", "REJOIN_TRIES", "CAGE_CLOSED",
+           "SINGULAR_RELEASE", "LEAVING_TRIES"]
+
+#: Pivots taken at most before the path gives up (a network a few contacts off takes a few
+#: to a few tens).
+MAX_PIVOTS = 500
+#: Caged rattlers tried (the deepest overlaps first) when one must rejoin the network: each
+#: try is a Newton solve with new unknowns.
+REJOIN_TRIES = 2
+#: Why a pivot failed when a rattler's cage closed on it (the pivot is then tried again with
+#: the particles that the release leaves with d contacts kept in the network).
+CAGE_CLOSED = "a rattler's cage closed along the floppy mode"
+#: Why a pivot failed when the network without the released contact is singular (Γ cannot
+#: grow along its floppy modes); when every release fails so, the vertex's own network is
+#: singular and is repaired (`repair_singular`).
+SINGULAR_RELEASE = "the network without the released contact is singular"
+#: Contacts with non-positive forces tried in turn (most negative first) when releasing one
+#: gives no pivot: its released network is singular (a floppy cluster held by a redundant
+#: contact), or its floppy mode closes no pair. Any of them may leave: Γ grows along each.
+LEAVING_TRIES = 5
+
+
+def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                     i: np.ndarray, j: np.ndarray, rattlers: np.ndarray,
+                     refined: Refinement | None = None,
+                     max_pivots: int = MAX_PIVOTS) -> tuple[PivotPath | None, str]:
+    """Pivot from an isostatic network to the jamming point (module doc).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres (mean diameters), at the Newton point of the network when `refined` is None.
+    diameters : ndarray, shape (N,)
+    box : ndarray, shape (d,)
+    i, j : ndarray, shape (M,), int
+        An isostatic network between stable particles, M = d (N_s − 1) + 1, i < j.
+    rattlers : ndarray, shape (N,), bool
+    refined : Refinement, optional
+        Newton's solution of the network from `positions`, when already computed. Without
+        it Newton solves the network; when it cannot (a singular Jacobian), the network is
+        repaired (`repair_singular`), and that repair is the path's first pivot. A vertex
+        whose every release leaves a singular network is repaired the same way.
+    max_pivots : int
+        Pivots taken at most (a repair counts as one).
+
+    Returns
+    -------
+    (PivotPath or None, str)
+        The path's end, with positive forces and no overlap (`PivotPath.jammed`), and "";
+        or where it stopped and why: the network became singular, a floppy mode closes no
+        pair near contact, a rattler's cage closed, or `max_pivots` were taken (a
+        `PivotPath` with ``jammed=False`` once a pivot was made, None when the start itself
+        is refused: another pair overlaps there, or Newton fails and the network is not
+        singular or its repair fails).
+    """
+    began = time.perf_counter()
+    i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)
+    stable = ~np.asarray(rattlers, dtype=bool)
+    start_positions, start_diameters = positions, diameters
+    swaps: list[Swap] = []
+    if refined is None:
+        refined = refine_isostatic(positions, diameters, box, i, j, stable)
+    if refined is None:   # a singular network has no Newton point: repair it
+        repaired, failure = repair_singular(positions, diameters, box, i, j, stable)
+        if repaired is None:
+            return None, f"{NEWTON_FAILED}; no repair: {failure}"
+        vertex, swap, factorizations = repaired
+        swaps.append(swap)
+    else:
+        refined = rattlers_out_of_the_way(
+            NeighborSearch(refined.positions, refined.diameters, box), refined, stable)
+        if refined is None:
+            return None, "a rattler overlaps its cage at the start"
+        basis = (None if refined.factorization is None
+                 else Basis(*refined.factorization, stable))
+        vertex = Vertex(i, j, stable, refined, basis)
+        factorizations = refined.factorizations
+    seen = {_network_digest(vertex)}
+    degenerate = bool(swaps) and swaps[0].growth <= DEGENERATE_STEP
+
+    def ended(jammed: bool) -> PivotPath:
+        return PivotPath(vertex.i, vertex.j, ~vertex.stable,
+                         _from_start(vertex.refinement, start_positions, start_diameters, box,
+                                     vertex.stable),
+                         tuple(swaps), factorizations, time.perf_counter() - began, jammed)
+
+    while True:
+        search = NeighborSearch(vertex.refinement.positions, vertex.refinement.diameters, box)
+        overlapping = int(np.sum(outside_pairs(search, vertex.keys, vertex.stable, NEAR_GAP).gaps
+                                 < -NEWTON_OVERLAP_TOLERANCE))
+        if overlapping:
+            return None, f"{overlapping} other pair(s) overlap"
+        if vertex.refinement.positive:
+            return ended(True), ""
+        if len(swaps) >= max_pivots:
+            return ended(False), f"no jamming point within {max_pivots} pivots"
+        failures = set()
+        for released in _leaving_contacts(vertex, bland=degenerate)[:LEAVING_TRIES]:
+            step, failure = _pivot(search, vertex, int(released))
+            if step is None and failure == CAGE_CLOSED:
+                # the particles the release left with d contacts stay in the network
+                step, failure = _pivot(search, vertex, int(released), attached=True)
+            if step is not None:
+                break
+            failures.add(failure)
+        if step is None and failures == {SINGULAR_RELEASE}:
+            # every release leaves a singular network: the vertex's own is singular (Newton
+            # ran on factors with perturbed pivots, and its forces are not unique)
+            refinement = vertex.refinement
+            step, why = repair_singular(refinement.positions, refinement.diameters, box,
+                                         vertex.i, vertex.j, vertex.stable)
+            failure = failure if step is not None else f"{failure}; no repair: {why}"
+        if step is None:
+            return (ended(False) if swaps else None), failure
+        next_vertex, swap, solves = step
+        factorizations += solves
+        degenerate = swap.growth <= DEGENERATE_STEP
+        if not degenerate:   # Γ grew: no network seen so far can come back
+            seen.clear()
+        digest = _network_digest(next_vertex)
+        if digest in seen:
+            return ended(False), "the path returned to a network it had left (cycling)"
+        seen.add(digest)
+        swaps.append(swap)
+        vertex = next_vertex
+
+
+def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
+           attached: bool = False) -> tuple[tuple[Vertex, Swap, int] | None, str]:
+    """Release contact `released` of `vertex`, follow the floppy mode, close the first pair.
+
+    Parameters
+    ----------
+    attached : bool
+        Keep the particles that the release leaves with d contacts in the network, held by
+        them, while the mode is followed (each still adds as many unknowns as contacts, so
+        there is still one floppy mode): their cage may close on them, and the pair that
+        closes gives them d + 1 contacts again. Those still left with d contacts at the new
+        vertex (whose forces vanish there) become rattlers then.
+
+    Returns
+    -------
+    ((next vertex, swap, factorisations) or None, str)
+    """
+    n, d = vertex.refinement.positions.shape
+    keep = np.ones(vertex.i.shape[0], dtype=bool)
+    keep[released] = False
+    if attached:
+        i_a, j_a, stable = vertex.i[keep], vertex.j[keep], vertex.stable
+    else:
+        ratt, kept = remove_rattlers(n, d, vertex.i[keep], vertex.j[keep])
+        i_a, j_a, stable = vertex.i[keep][kept], vertex.j[keep][kept], ~ratt
+    if np.array_equal(stable, vertex.stable):
+        # same unknowns: the row of the released contact is swapped in place
+        rows_i, rows_j, swap_row = vertex.i, vertex.j, released
+        basis, swapped = vertex.basis, vertex.swapped
+    else:   # rattlers left with their contacts: new unknowns, the swapped row last
+        rows_i, rows_j, swap_row = np.append(i_a, 0), np.append(j_a, 0), i_a.shape[0]
+        basis, swapped = None, ()
+    if basis is not None and not basis.fits(stable):
+        basis, swapped = None, ()
+    mode = _floppy_mode(search, rows_i, rows_j, stable, swap_row, basis, swapped)
+    if mode is None:
+        return None, SINGULAR_RELEASE
+    direction, made = mode
+    solves = 0
+    if made is not None:   # K was factorised: the basis of this pivot and the next ones
+        basis, swapped, solves = Basis(*made, stable), (), 1
+    c_i, c_j = int(vertex.i[released]), int(vertex.j[released])
+    if stable[c_i] and stable[c_j]:
+        c_pair = search.pairs_of(np.array([c_i]), np.array([c_j]))
+        if closing_rates(c_pair, direction)[0] <= 0:
+            return None, "the released contact does not open along its floppy mode"
+    ratio_test = find_closing_pairs(search, i_a * n + j_a, stable, direction)
+    if ratio_test is None:
+        return None, "the floppy mode closes no pair near contact"
+    near, steps, candidates = ratio_test
+    positions = vertex.refinement.positions
+    diameters = vertex.refinement.diameters
+    next_swapped = tuple(sorted(set(swapped) | {swap_row}))
+    for closing in candidates[:RATIO_CANDIDATES]:
+        predicted = positions + steps[closing] * direction
+        i_new, j_new = rows_i.copy(), rows_j.copy()
+        i_new[swap_row], j_new[swap_row] = near.i[closing], near.j[closing]
+        factors = None if basis is None else basis.factors_for(
+            _jacobian_at(predicted, diameters, search.box, i_new, j_new, stable), next_swapped)
+        refined = refine_isostatic(predicted, diameters, search.box, i_new, j_new, stable,
+                                   factors=factors)
+        if refined is None:
+            continue
+        solves += refined.factorizations
+        growth = float(np.mean(refined.diameters / diameters)) - 1.0
+        if growth < -DEGENERATE_STEP:
+            continue
+        now_rattlers, kept = remove_rattlers(n, d, i_new, j_new)
+        if attached and not kept.all():   # left with d contacts: zero forces, rattlers now
+            i_new, j_new = i_new[kept], j_new[kept]
+            refined = replace(refined, forces=refined.forces[kept])
+        now_stable = ~now_rattlers
+        moved = NeighborSearch(refined.positions, refined.diameters, search.box)
+        if np.any(outside_pairs(moved, i_new * n + j_new, now_stable,
+                                NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
+            continue
+        separated = rattlers_out_of_the_way(moved, refined, now_stable)
+        if separated is None:   # a cage closed on its rattler before this pair closed
+            rejoined = _rejoin_caged(moved, vertex, i_a, j_a, stable, (c_i, c_j))
+            if rejoined is not None:
+                joined, pairs, joined_growth = rejoined
+                solves += joined.refinement.factorizations
+                swap = Swap((c_i, c_j), pairs[0], max(joined_growth, 0.0),
+                            int(np.count_nonzero(~stable & vertex.stable)), rejoined=1)
+                return (joined, swap, solves), ""
+            return None, CAGE_CLOSED   # a later pair of the ratio test would close it too
+        refined = separated
+        if refined.factorization is not None:
+            next_basis, next_swaps = Basis(*refined.factorization, stable), ()
+        else:
+            next_basis, next_swaps = basis, next_swapped
+        if not np.array_equal(now_stable, stable):   # the rows of the new rattlers left
+            next_basis, next_swaps = None, ()
+        candidate = Vertex(i_new, j_new, now_stable, refined, next_basis, next_swaps)
+        swap = Swap((c_i, c_j), (int(near.i[closing]), int(near.j[closing])), max(growth, 0.0),
+                    int(np.count_nonzero(now_rattlers & vertex.stable)))
+        return (candidate, swap, solves), ""
+    return None, "Newton found no vertex without overlap along the floppy mode"
+
+
+def _jacobian_at(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                 i: np.ndarray, j: np.ndarray, stable: np.ndarray) -> sp.csr_matrix:
+    """The contact Jacobian of network (i, j) at a configuration (`calippso.newton`)."""
+    vectors = minimum_image(positions[i] - positions[j], box)
+    return network_jacobian(vectors, 0.5 * (diameters[i] + diameters[j]), i, j, stable)
+
+
+def _rejoin_caged(moved: NeighborSearch, vertex: Vertex, i_a: np.ndarray, j_a: np.ndarray,
+                  stable: np.ndarray, released: tuple[int, int]
+                  ) -> tuple[Vertex, list[tuple[int, int]], float] | None:
+    """A rattler whose cage closed along the floppy mode joins the network again.
+
+    `moved` is the configuration one pair too far along the mode, where a rattler overlaps
+    its cage and cannot be moved out. Its d + 1 closest pairs with stable particles there
+    (its cage, never the `released` contact) close instead: the released network A (one
+    floppy mode) with those d + 1 rows and the rattler's d unknowns is isostatic, and Newton
+    solves it from the vertex.
+
+    Returns
+    -------
+    (vertex, pairs, growth) or None
+        The new vertex, the cage's pairs, the relative diameter growth; None when neither of
+        the `REJOIN_TRIES` rattlers that overlap most gives a vertex with no overlap.
+    """
+    d = moved.positions.shape[1]
+    close = moved.pairs_within(float(moved.diameters.max()) * (1.0 + CAGE_GAP))
+    one_rattler = (stable[close.i] != stable[close.j]) & ~(
+        (close.i == released[0]) & (close.j == released[1]))
+    overlapping = one_rattler & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
+    rattler_of = np.where(stable[close.i], close.j, close.i)
+    caged = np.unique(rattler_of[overlapping])
+    positions, diameters = vertex.refinement.positions, vertex.refinement.diameters
+    deepest = np.argsort([close.gaps[overlapping & (rattler_of == r)].min() for r in caged])
+    for rattler in caged[deepest][:REJOIN_TRIES]:
+        own = np.flatnonzero(one_rattler & (rattler_of == rattler))
+        if own.size < d + 1:
+            continue
+        cage = own[np.argsort(close.gaps[own])[:d + 1]]
+        i_new = np.concatenate([i_a, close.i[cage]])
+        j_new = np.concatenate([j_a, close.j[cage]])
+        joined = stable.copy()
+        joined[rattler] = True
+        refined = refine_isostatic(positions, diameters, moved.box, i_new, j_new, joined)
+        if refined is None:
+            continue
+        growth = float(np.mean(refined.diameters / diameters)) - 1.0
+        after = NeighborSearch(refined.positions, refined.diameters, moved.box)
+        candidate = Vertex(i_new, j_new, joined, refined)
+        overlaps = outside_pairs(after, candidate.keys, joined, NEAR_GAP).gaps
+        if growth < -DEGENERATE_STEP or np.any(overlaps < -NEWTON_OVERLAP_TOLERANCE):
+            continue
+        separated = rattlers_out_of_the_way(after, refined, joined)
+        if separated is None:
+            continue
+        pairs = [(int(a), int(b)) for a, b in zip(close.i[cage], close.j[cage])]
+        return Vertex(i_new, j_new, joined, separated), pairs, growth
+    return None
+
+
+def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: np.ndarray,
+                 gamma_row: int, basis: Basis | None,
+                 swapped: tuple[int, ...]
+                 ) -> tuple[np.ndarray, tuple[Factors, sp.csr_matrix] | None] | None:
+    """The floppy mode of a network with one contact fewer than unknowns, per particle.
+
+    Solves K t = e_Γ, where K is the Jacobian of the pairs (i, j) with the row `gamma_row`
+    replaced by the row of Γ (appended when `gamma_row` is the number of pairs): t is the
+    null vector of the other rows with dΓ = 1.
+
+    Parameters
+    ----------
+    basis : Basis or None
+        Factors to solve with, where K differs from the basis in rows `swapped` and
+        `gamma_row`; None: K is factorised.
+
+    Returns
+    -------
+    (ndarray, shape (N, d), (Factors, matrix) or None) or None
+        The displacement of every particle per unit of Γ (zero for the pinned particle and
+        the rattlers), and K with its new factors when the basis could not serve; None when
+        K is singular (Γ cannot grow along the floppy modes).
+    """
+    n, d = search.positions.shape
+    pairs = search.pairs_of(i, j)
+    jacobian = network_jacobian(pairs.vectors, pairs.sigma, i, j, stable)
+    n_unknowns = jacobian.shape[1]
+    rows = [jacobian[:gamma_row],
+            sp.csr_matrix(([1.0], ([0], [n_unknowns - 1])), shape=(1, n_unknowns)),
+            jacobian[gamma_row + 1:]]
+    matrix = sp.vstack(rows).tocsr()
+    if matrix.shape[0] != n_unknowns:
+        return None
+    target = np.zeros(n_unknowns)
+    target[gamma_row] = 1.0
+    factors = None if basis is None else basis.factors_for(matrix, tuple(sorted(
+        set(swapped) | {gamma_row})))
+    solution = None if factors is None else refined_solve(matrix, factors, target)
+    made = None
+    if solution is None:   # no factors, or too far from K: factorise K itself
+        factors = factorize(matrix.tocsc(), strict=False)
+        solution = None if factors is None else refined_solve(matrix, factors, target)
+        made = (factors, matrix)
+    if solution is None:
+        return None
+    members = np.flatnonzero(stable)
+    mode = np.zeros((n, d))
+    mode[members[1:]] = solution[:-1].reshape(-1, d)
+    return mode, made
+
+
+def _leaving_contacts(vertex: Vertex, bland: bool) -> np.ndarray:
+    """The contacts to release, in the order to try them: the non-positive forces, most
+    negative first; on a degenerate stretch of the path only the one of smallest pair key
+    (Bland's rule)."""
+    forces = vertex.refinement.forces
+    candidates = np.flatnonzero(forces <= MIN_FORCE_RATIO * float(forces.max()))
+    if bland:
+        return candidates[[np.argmin(vertex.keys[candidates])]]
+    return candidates[np.argsort(forces[candidates], kind="stable")]
+
+
+def _network_digest(vertex: Vertex) -> bytes:
+    return np.sort(vertex.keys).tobytes()
+
+
+def _from_start(refined: Refinement, positions: np.ndarray, diameters: np.ndarray,
+                box: np.ndarray, stable: np.ndarray) -> Refinement:
+    """`refined` with its growth and largest displacement measured from the path's start."""
+    moved = minimum_image(refined.positions[stable] - positions[stable], box)
+    return Refinement(
+        positions=refined.positions, diameters=refined.diameters, forces=refined.forces,
+        iterations=refined.iterations, factorizations=refined.factorizations,
+        sqrt_gamma_minus_1=float(np.mean(refined.diameters / diameters)) - 1.0,
+        max_displacement=float(np.abs(moved).max(initial=0.0)), residual=refined.residual)

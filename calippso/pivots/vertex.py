@@ -1,0 +1,220 @@
+"""The records of a pivot path and the factorisation its pivots share.
+
+`Swap` is one pivot, `PivotPath` the end of a path; `Vertex` is a point of the path (an
+isostatic network at its Newton point) and `Basis` the sparse LU that the pivots after it
+reuse, one swapped row at a time, through the Woodbury identity. `describe_path` writes the
+clause of a run's notes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg import lu_factor, lu_solve
+
+from ..newton import Refinement
+from ..sparse_lu import Factors
+
+__all__ = ["Swap", "PivotPath", "Vertex", "Basis", "describe_path", "DEGENERATE_STEP",
+           "MAX_ROW_SWAPS", "MAX_SMALL_CONDITION", "LISTED_SWAPS"]
+
+#: An inflation step (relative, ΔΓ/Γ) below this is a degenerate pivot: the closing pair
+#: already touches, Γ does not grow.
+DEGENERATE_STEP = 1e-14
+#: Rows swapped into one factorisation (`Basis`) before the Jacobian is factorised again.
+MAX_ROW_SWAPS = 40
+#: The k × k system of the Woodbury identity is refused beyond this condition number (its
+#: solves would lose the accuracy that the chord steps and refinement need).
+MAX_SMALL_CONDITION = 1e10
+#: Swaps listed by name in `describe_path`.
+LISTED_SWAPS = 5
+
+
+@dataclass(frozen=True)
+class Swap:
+    """One pivot: the contact released, the pair closed, and the inflation gained.
+
+    Attributes
+    ----------
+    released : tuple of int
+        The contact (i, j) whose force was not positive.
+    closed : tuple of int
+        The pair (i, j) that closed along the floppy mode.
+    growth : float
+        √(Γ'/Γ) − 1: the relative diameter growth of this pivot (0 when degenerate).
+    new_rattlers : int
+        Particles the release left with d contacts (they leave the network).
+    rejoined : int
+        Rattlers whose cage closed along the floppy mode (they join the network with d + 1
+        contacts; `closed` is the first of them).
+    repaired : bool
+        The swap repaired a singular network (`repair_singular`: the start, or a vertex
+        that Newton solved on factors with perturbed pivots): `released` is the
+        redundant contact opened, `closed` the pair that closed the floppy mode, and
+        `growth` is measured from where the network without the released contact closes.
+    """
+
+    released: tuple[int, int]
+    closed: tuple[int, int]
+    growth: float
+    new_rattlers: int
+    rejoined: int = 0
+    repaired: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class PivotPath:
+    """The end of a pivot path: an isostatic network at its Newton point, with positive forces
+    (`jammed`), or the last vertex that the path reached before it had to stop.
+
+    Attributes
+    ----------
+    i, j : ndarray, shape (M,), int64
+        Contacts between stable particles, i < j.
+    rattlers : ndarray, shape (N,), bool
+    refinement : Refinement
+        The jamming point (positions, diameters, forces), with its growth and largest
+        displacement measured from the start of the path.
+    swaps : tuple of Swap
+        The pivots in order (with the repairs of singular networks, `Swap.repaired`).
+    factorizations : int
+        Sparse LU factorisations (directions and Newton solves).
+    seconds : float
+        Wall time of the path.
+    jammed : bool
+        Every force is positive: the path reached a jamming point. False: the path stopped
+        (why is returned beside it) at this vertex, no lower in Γ than its start.
+    closed : tuple of (int, int)
+        The pairs that closed the floppy modes of a hypostatic start before the first pivot
+        (`calippso.floppy_modes`), in order; empty when the start was isostatic.
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    rattlers: np.ndarray
+    refinement: Refinement
+    swaps: tuple[Swap, ...]
+    factorizations: int
+    seconds: float
+    jammed: bool = True
+    closed: tuple[tuple[int, int], ...] = ()
+
+    @property
+    def pivots(self) -> int:
+        """Pivots taken."""
+        return len(self.swaps)
+
+    @property
+    def degenerate(self) -> int:
+        """Pivots that gained no inflation."""
+        return sum(swap.growth <= DEGENERATE_STEP for swap in self.swaps)
+
+    @property
+    def repairs(self) -> int:
+        """Swaps that repaired a singular network (`Swap.repaired`)."""
+        return sum(swap.repaired for swap in self.swaps)
+
+    @property
+    def largest_growth(self) -> float:
+        """The largest relative diameter growth of one pivot."""
+        return max((swap.growth for swap in self.swaps), default=0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Vertex:
+    """A point of the path: an isostatic network at its Newton point (diameters σ √Γ, so that
+    Φ_c = |r_c|²/σ_c² − 1 vanishes on the contacts)."""
+
+    i: np.ndarray
+    j: np.ndarray
+    stable: np.ndarray
+    refinement: Refinement
+    basis: Basis | None = None
+    swapped: tuple[int, ...] = ()
+
+    @property
+    def keys(self) -> np.ndarray:
+        return self.i * self.stable.shape[0] + self.j
+
+
+class _SwappedFactors:
+    """Solves with a matrix M that equals a factorised base matrix B but in k rows R, by the
+    Woodbury identity: with W = B⁻¹ E_R (n × k) and V = M[R] − B[R] (k × n), S = I + V W,
+
+        M⁻¹ b = y − W S⁻¹ V y  (y = B⁻¹ b),   M⁻ᵀ b = B⁻ᵀ (b − Vᵀ S⁻ᵀ Wᵀ b):
+
+    one solve with the base factors and a k × k system per solve."""
+
+    def __init__(self, base: Factors, columns: np.ndarray, changes: sp.csr_matrix,
+                 small: tuple[np.ndarray, np.ndarray]):
+        self._base, self._columns, self._changes, self._small = base, columns, changes, small
+
+    def solve(self, rhs: np.ndarray, trans: str = "N") -> np.ndarray:
+        if trans == "T":
+            weights = lu_solve(self._small, self._columns.T @ rhs, trans=1)
+            return self._base.solve(rhs - self._changes.T @ weights, trans="T")
+        solution = self._base.solve(rhs)
+        return solution - self._columns @ lu_solve(self._small, self._changes @ solution)
+
+
+class Basis:
+    """One sparse LU of a network's Jacobian (unknowns of the stable set `stable`), reused by
+    the pivots that follow: a pivot swaps one row, and `factors_for` solves with the swapped
+    matrix by the Woodbury identity (`_SwappedFactors`). The columns B⁻¹ e_r are kept."""
+
+    def __init__(self, factors: Factors, matrix: sp.spmatrix, stable: np.ndarray):
+        self.factors = factors
+        self.matrix = sp.csr_matrix(matrix)
+        self.stable = stable
+        self._columns: dict[int, np.ndarray] = {}
+
+    def fits(self, stable: np.ndarray) -> bool:
+        """Whether the unknowns are those of the basis (same stable particles)."""
+        return bool(np.array_equal(self.stable, stable))
+
+    def factors_for(self, matrix: sp.spmatrix, rows: tuple[int, ...]) -> Factors | None:
+        """Factors of `matrix`, which differs from the basis in `rows` (and by the motion of
+        the particles elsewhere: the factors are then those of a nearby matrix); None when
+        there are more than `MAX_ROW_SWAPS` rows or the small system is singular."""
+        if not rows:
+            return self.factors
+        if len(rows) > MAX_ROW_SWAPS:
+            return None
+        index = np.array(rows)
+        for row in rows:
+            if row not in self._columns:
+                unit = np.zeros(self.matrix.shape[0])
+                unit[row] = 1.0
+                self._columns[row] = self.factors.solve(unit)
+        columns = np.column_stack([self._columns[row] for row in rows])
+        changes = sp.csr_matrix(matrix)[index] - self.matrix[index]
+        small = np.eye(index.size) + changes @ columns
+        if not np.all(np.isfinite(small)) or np.linalg.cond(small) > MAX_SMALL_CONDITION:
+            return None
+        return _SwappedFactors(self.factors, columns, sp.csr_matrix(changes), lu_factor(small))
+
+
+def describe_path(path: PivotPath) -> str:
+    """One clause on a path for the run's notes: floppy modes closed, pivots (and the repairs
+    of a singular network among them), time, contacts swapped, largest growth of one
+    pivot."""
+    closed = ""
+    if path.closed:
+        pairs = ", ".join(f"{pair}" for pair in path.closed[:LISTED_SWAPS])
+        more = f" and {len(path.closed) - LISTED_SWAPS} more" if len(
+            path.closed) > LISTED_SWAPS else ""
+        closed = (f"{len(path.closed)} floppy mode(s) of the hypostatic network closed "
+                  f"(pairs {pairs}{more}), then ")
+    listed = ", ".join(f"{swap.released}->{swap.closed}" for swap in path.swaps[:LISTED_SWAPS])
+    more = f" and {path.pivots - LISTED_SWAPS} more" if path.pivots > LISTED_SWAPS else ""
+    degenerate = f" ({path.degenerate} degenerate)" if path.degenerate else ""
+    repaired = (f"singular Jacobian ({path.repairs} of them opened a redundant contact and "
+                f"closed a floppy mode) and its " if path.repairs else "")
+    if not path.pivots:
+        return f"{closed}no contact pivot was needed ({path.seconds:.2f} s)"
+    return (f"{closed}{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s "
+            f"repaired the network's {repaired}non-positive forces (released->closed: "
+            f"{listed}{more}; largest growth of one pivot sqrt(Gamma)-1 = "
+            f"{path.largest_growth:.1e})")
