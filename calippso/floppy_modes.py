@@ -12,11 +12,11 @@ closure:
        [ I    J_xᵀ ] [ t ]   [ 0 ]
        [ J_x  0    ] [ λ ] = [ 1 ],
 
-   a sparse symmetric system whose factors are refined against it (`pivots.least_norm_solve`).
+   a sparse symmetric system whose factors are refined against it (`pivots.geometry.least_norm_solve`).
    It is singular when the contacts hold a self-stress, and then Γ cannot grow along the
    floppy modes at first order: the closure stops there.
 2. **Ratio test.** The first pair of stable particles outside C to close along t
-   (`pivots.find_closing_pairs`, Harris's choice among near ties).
+   (`pivots.geometry.find_closing_pairs`, Harris's choice among near ties).
 3. **Correct.** C' = C ∪ {k}. From the predicted point x + δ t, least-norm Gauss–Newton
    steps with the same kind of system bring every contact of C' back to contact at the
    inflation 1 + δ; the last closure (C' isostatic) is solved by Newton with Γ free
@@ -43,8 +43,9 @@ from .neighbors import NeighborSearch
 from .network import NEWTON_OVERLAP_TOLERANCE
 from .newton import Refinement, network_jacobian, refine_isostatic
 from .packing import minimum_image
-from .pivots import (DEGENERATE_STEP, NEAR_GAP, RATIO_CANDIDATES, clear_rattlers,
-                     find_closing_pairs, least_norm_solve, onto_contacts, outside_pairs)
+from .pivots.geometry import (NEAR_GAP, RATIO_CANDIDATES, clear_rattlers, find_closing_pairs,
+                              least_norm_solve, onto_contacts, outside_pairs)
+from .pivots.vertex import DEGENERATE_STEP
 from .rattlers import remove_rattlers
 
 __all__ = ["Closure", "close_floppy_modes", "MAX_CLOSURES"]

@@ -267,7 +267,7 @@ def test_a_release_that_leaves_a_singular_network_gives_way_to_the_next(source, 
     """When the most negative contact's release leaves a singular network (simulated: its
     floppy mode is refused), the next non-positive contact leaves instead, and the path
     still reaches a certified jamming point."""
-    from calippso import pivots
+    from calippso.pivots import path as pivot_path
 
     positions, diameters, box = in_mean_diameters(source.packing)
     for network in swapped_networks(source, 2, wanted=2) + swapped_networks(source, 3,
@@ -279,13 +279,13 @@ def test_a_release_that_leaves_a_singular_network_gives_way_to_the_next(source, 
     else:
         pytest.skip("no swapped network with two non-positive forces")
     most_negative = tuple(network[np.argmin(start.forces)])
-    real_floppy_mode, calls = pivots._floppy_mode, []
+    real_floppy_mode, calls = pivot_path._floppy_mode, []
 
     def singular_first(*args, **kwargs):
         calls.append(1)
         return None if len(calls) == 1 else real_floppy_mode(*args, **kwargs)
 
-    monkeypatch.setattr(pivots, "_floppy_mode", singular_first)
+    monkeypatch.setattr(pivot_path, "_floppy_mode", singular_first)
     path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
                                      source.rattlers, refined=start)
     assert path is not None and path.jammed, failure
