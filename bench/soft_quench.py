@@ -81,7 +81,8 @@ def run(n: int, d: int, seed: int, target_pressure: float, minimiser: str,
     row = {"n": n, "d": d, "seed": seed, "minimiser": extra["minimiser"],
            "phi": result.packing.phi,
            "pressure": extra["pressure"], "minimisations": extra["minimisations"],
-           "steps": extra["fire_steps"], "steps_per_rung": per_rung.tolist(),
+           "steps": extra["fire_steps"], "newton_solves": extra["newton_solves"],
+           "steps_per_rung": per_rung.tolist(),
            "slowest_over_median": slowest_over_median(per_rung),
            "rebuilds": extra["rebuilds"], "wall_s": wall, "cpu_s": cpu,
            "isostaticity_gap": extra["isostaticity_gap"], "stable": extra["stable"],
@@ -170,7 +171,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
     parser.add_argument("--target-pressure", type=float, default=1e-7)
     parser.add_argument("--minimiser", nargs="+", default=["auto"],
-                        choices=["auto", "fire", "lbfgs"],
+                        choices=["auto", "fire", "lbfgs", "newton"],
                         help="run each case with each of these")
     parser.add_argument("--jam", action="store_true",
                         help="jam each result with its network (network_first='require')")

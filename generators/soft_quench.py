@@ -19,7 +19,7 @@ from calippso.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
 from calippso.packing import Packing, ball_volume
 from calippso.rattlers import remove_rattlers
 
-from . import _fire, _lbfgs
+from . import _fire, _lbfgs, _newton
 from ._checks import (check_boundaries, check_diameters, check_dimension, check_phi,
                       check_positive, phi_estimate, remove_roundoff_overlap, wall_gaps)
 from .checkpoint import Checkpoint, Resumable, digest
@@ -78,8 +78,26 @@ SKIN_STEP = 2.0
 #: checkpoint may be written (a pause changes no result: `_fire.fire_run` and
 #: `_lbfgs.lbfgs_run` continue from the state they return).
 PAUSE_STEPS = 1000
+#: Newton iterations (solves) between two pauses: each costs a sparse factorisation, as much
+#: as 10³–10⁴ FIRE steps.
+NEWTON_PAUSE_STEPS = 10
+#: minimiser="newton" alternates two phases within each minimisation: the dimension's
+#: first-order minimiser ("auto": FIRE or L-BFGS) for up to `NEWTON_AFTER_STEPS` steps, then
+#: damped Newton (`_newton.newton_run`) for up to `NEWTON_PHASE_SOLVES` solves, and so on
+#: until converged. Newton converges in ~20 solves once the overlap network has settled
+#: (d = 3, N = 1024, from a FIRE minimum to 1e-4 of the mean force down to 1e-6), but while
+#: contacts still form it finds them a few per solve; the first-order phase finds them
+#: cheaply, and most minimisations end within it.
+NEWTON_AFTER_STEPS = 20_000
+NEWTON_PHASE_SOLVES = 40
+#: Layout of `_SoftSpheres.method` with minimiser="newton": the phase (`BASE_PHASE` or
+#: `NEWTON_PHASE`), the steps taken in it, then its kernel's state from `PHASE_STATE` on.
+PHASE, PHASE_TAKEN, PHASE_STATE = 0, 1, 2
+BASE_PHASE, NEWTON_PHASE = 0.0, 1.0
 #: The minimisers `soft_quench` offers ("auto" picks one by the dimension).
-MINIMISERS = ("auto", "fire", "lbfgs")
+MINIMISERS = ("auto", "fire", "lbfgs", "newton")
+#: Where each minimiser's state array holds λ = ln a.
+LOG_SCALE_SLOT = {"fire": 4, "lbfgs": _lbfgs.LOG_SCALE, "newton": _newton.LOG_SCALE}
 #: With minimiser="auto", L-BFGS from this dimension on, FIRE below. In d = 4 and 5 (N = 1024,
 #: seeds 1–5) L-BFGS took fewer force evaluations than FIRE took steps, and its slowest run
 #: fewer in d = 5. In d = 3 neither is faster at every N (seed 1, quench s, FIRE / L-BFGS:
@@ -104,7 +122,8 @@ class _SoftSpheres(Resumable):
     skin : float
         Largest Verlet skin, in mean diameters (the skin adapts below it).
     minimiser : str
-        "fire" (`_fire.fire_run`) or "lbfgs" (`_lbfgs.lbfgs_run`).
+        "fire" (`_fire.fire_run`), "lbfgs" (`_lbfgs.lbfgs_run`) or "newton" (phases of
+        `base` and of `_newton.newton_run`, `NEWTON_AFTER_STEPS`).
     periodic : ndarray, shape (d,), bool, optional
         Periodic axes; flat harmonic walls at 0 and L_μ along the others (`_fire`) except
         the cylinder's. None: every axis periodic.
@@ -122,7 +141,12 @@ class _SoftSpheres(Resumable):
     scale : float
         Diameter scale a.
     steps : int
-        FIRE steps (L-BFGS force evaluations) so far.
+        FIRE steps (L-BFGS force evaluations, Newton solves) so far.
+    base : str
+        The first-order kernel of minimiser="newton": "lbfgs" from `LBFGS_FROM_DIMENSION`
+        on, "fire" below.
+    solves : int
+        Newton solves so far (among `steps`).
     """
 
     def __init__(self, positions: np.ndarray, nominal: np.ndarray, box: np.ndarray,
@@ -153,8 +177,11 @@ class _SoftSpheres(Resumable):
         self.scale_built = self.scale
         self.lists: tuple[np.ndarray, ...] = ()
         self.minimiser = minimiser
+        self.base = "lbfgs" if d >= LBFGS_FROM_DIMENSION else "fire"
+        self.solves = 0
         # The minimisation in progress: the minimiser's state (`_fire.fire_run`,
-        # `_lbfgs.lbfgs_run`; empty between two minimisations) and L-BFGS's history (s, y
+        # `_lbfgs.lbfgs_run`; with "newton" the phase, its steps and its kernel's state,
+        # `PHASE`; empty between two minimisations) and L-BFGS's history (s, y
         # pairs: `memory_x` shape (2, HISTORY, N d), `memory_u` shape (4, HISTORY)), its
         # steps so far, the rebuild count at its start, its steps at the last list build and
         # the last drift; the share of the listed pairs that did not overlap at the build.
@@ -173,7 +200,7 @@ class _SoftSpheres(Resumable):
              "x_built": np.float64, "method": np.float64, "memory_x": np.float64,
              "memory_u": np.float64, "scale": float, "skin": float,
              "scale_built": float, "drift": float, "steps": int, "rebuilds": int,
-             "taken": int, "built": int, "built_at": int}
+             "taken": int, "built": int, "built_at": int, "solves": int}
 
     def restore(self, saved: dict) -> None:
         """`Resumable.restore`, then the lists of a minimisation in progress."""
@@ -223,6 +250,35 @@ class _SoftSpheres(Resumable):
         self.skin = min(self.max_skin, max(SKIN_MIN, factor * self.skin))
         self.built_at = self.taken
 
+    @property
+    def kernel(self) -> str:
+        """The kernel of the minimisation in progress: the minimiser's, or with "newton" that
+        of its phase (`base` or "newton")."""
+        if self.minimiser != "newton":
+            return self.minimiser
+        return "newton" if self.method[PHASE] == NEWTON_PHASE else self.base
+
+    def _begin(self, kernel: str) -> None:
+        """Start `kernel` from rest at the current positions and scale: its fresh state in
+        `method` (after the phase and its steps, with minimiser="newton"), L-BFGS's empty
+        history."""
+        self.v[:] = 0.0
+        log_scale = np.log(self.scale)
+        self.memory_x = np.empty((2, 0, self.x.size))
+        self.memory_u = np.empty((4, 0))
+        if kernel == "lbfgs":
+            state = _lbfgs.new_state(log_scale)
+            self.memory_x = np.zeros((2, _lbfgs.HISTORY, self.x.size))
+            self.memory_u = np.zeros((4, _lbfgs.HISTORY))
+        elif kernel == "newton":
+            state = _newton.new_state(log_scale)
+        else:
+            state = np.array([self.dt0, _fire.ALPHA_START, 0.0, 0.0, log_scale, 0.0])
+        if self.minimiser == "newton":
+            phase = NEWTON_PHASE if kernel == "newton" else BASE_PHASE
+            state = np.concatenate([[phase, 0.0], state])
+        self.method = state
+
     def minimise(self, pressure: float, tolerance: float, max_steps: int,
                  pause: Callable[[bool], None] | None = None) -> tuple[int, float]:
         """Minimise the enthalpy at fixed pressure, from rest, until converged or out of steps.
@@ -239,7 +295,8 @@ class _SoftSpheres(Resumable):
             (or the round-off floor of the forces, `ROUNDOFF_FORCE` × eps × L) and
             |p − p*| ≤ tolerance × p*.
         max_steps : int
-            Steps (FIRE steps or L-BFGS force evaluations) allowed to this minimisation.
+            Steps (FIRE steps, L-BFGS force evaluations, Newton solves) allowed to this
+            minimisation.
         pause : callable, optional
             Called as ``pause(stopped)`` after every list rebuild and every `PAUSE_STEPS`
             steps, where the state is complete (`state`); `stopped` is True when the steps
@@ -253,27 +310,32 @@ class _SoftSpheres(Resumable):
             Pressure at the end.
         """
         if not self.method.size:
-            self.v[:] = 0.0
-            if self.minimiser == "lbfgs":
-                self.method = _lbfgs.new_state(np.log(self.scale))
-                self.memory_x = np.zeros((2, _lbfgs.HISTORY, self.x.size))
-                self.memory_u = np.zeros((4, _lbfgs.HISTORY))
-            else:
-                self.method = np.array([self.dt0, _fire.ALPHA_START, 0.0, 0.0,
-                                        np.log(self.scale), 0.0])
+            self._begin(self.base if self.minimiser == "newton" else self.minimiser)
             self.rebuild()
             self.built, self.taken, self.built_at, self.drift = self.rebuilds, 0, 0, 0.0
         while True:
-            code, steps, reached, drift = self._run(pressure, tolerance,
-                                                    min(max_steps - self.taken, PAUSE_STEPS))
+            kernel = self.kernel
+            budget = max_steps - self.taken
+            if self.minimiser == "newton":
+                limit = NEWTON_PHASE_SOLVES if kernel == "newton" else NEWTON_AFTER_STEPS
+                budget = min(budget, limit - int(self.method[PHASE_TAKEN]))
+            code, steps, reached, drift = self._run(
+                pressure, tolerance, min(budget, NEWTON_PAUSE_STEPS if kernel == "newton"
+                                         else PAUSE_STEPS))
             self.taken += steps
+            if kernel == "newton":
+                self.solves += steps
             if steps:
                 self.drift = drift
-            self.scale = float(np.exp(self.method[4 if self.minimiser == "fire"
-                                                  else _lbfgs.LOG_SCALE]))
+            state = self.method[PHASE_STATE:] if self.minimiser == "newton" else self.method
+            self.scale = float(np.exp(state[LOG_SCALE_SLOT[kernel]]))
             if code == _fire.CONVERGED:
                 break
             stopped = code == _fire.OUT_OF_STEPS and self.taken >= max_steps
+            if self.minimiser == "newton" and not stopped:
+                self.method[PHASE_TAKEN] += steps
+                if self.method[PHASE_TAKEN] >= limit:     # the phase is over: the other one
+                    self._begin("newton" if kernel == self.base else self.base)
             if code == _fire.REBUILD:
                 self._adapt_skin()
                 self.rebuild()
@@ -291,15 +353,23 @@ class _SoftSpheres(Resumable):
 
     def _run(self, pressure: float, tolerance: float,
              max_steps: int) -> tuple[int, int, float, float]:
-        """One call of the minimiser's kernel (`_fire.fire_run` or `_lbfgs.lbfgs_run`)."""
-        if self.minimiser == "lbfgs":
+        """One call of the kernel (`_fire.fire_run`, `_lbfgs.lbfgs_run` or
+        `_newton.newton_run`) on its state (a view into `method`)."""
+        kernel = self.kernel
+        state = self.method[PHASE_STATE:] if self.minimiser == "newton" else self.method
+        if kernel == "newton":
+            return _newton.newton_run(
+                self.x, self.f, self.s, self.box, *self.lists[:2], self.x_built, self.skin,
+                self.scale_built, state, tolerance, self.force_floor, pressure,
+                max_steps, self.periodic, self.circle)
+        if kernel == "lbfgs":
             return _lbfgs.lbfgs_run(
                 self.x, self.f, self.s, self.box, *self.lists, self.x_built, self.skin,
-                self.scale_built, self.method, self.memory_x, self.memory_u, tolerance,
+                self.scale_built, state, self.memory_x, self.memory_u, tolerance,
                 self.force_floor, pressure, max_steps, self.periodic, self.circle)
         return _fire.fire_run(
             self.x, self.v, self.f, self.s, self.box, *self.lists, self.x_built,
-            self.skin, self.scale_built, self.method, DT_MAX_FACTOR * self.dt0,
+            self.skin, self.scale_built, state, DT_MAX_FACTOR * self.dt0,
             _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure,
             max_steps, self.periodic, self.circle)
 
@@ -446,8 +516,8 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         (the cost of rebuilding the lists against that of listing non-interacting pairs),
         and once the particles settle their drift per minimisation (down to 0.02).
     max_steps : int
-        Limit on the steps of the whole run (FIRE steps, or L-BFGS force evaluations; an
-        L-BFGS line search in progress finishes). A run stopped by it and called again with
+        Limit on the steps of the whole run (FIRE steps, L-BFGS force evaluations or Newton
+        solves; an L-BFGS line search in progress finishes). A run stopped by it and called again with
         a larger limit and the same checkpoint continues where it stopped.
     checkpoint : str or PathLike, optional
         File (``.npz``) holding the state of the run (`generators.checkpoint`). It is written
@@ -457,10 +527,13 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         finished run returns from it at once. `max_steps` may differ between the calls.
     checkpoint_every : float
         Smallest wall time in seconds between two checkpoint writes (0: at every pause).
-    minimiser : {"auto", "fire", "lbfgs"}
+    minimiser : {"auto", "fire", "lbfgs", "newton"}
         The minimiser of the enthalpy: FIRE 2.0, or L-BFGS with a Wolfe line search
         (`steps` then counts force evaluations); "auto" takes L-BFGS in d ≥ 4 and FIRE in
-        d = 2, 3. Both stop on the same convergence test.
+        d = 2, 3. "newton": within each minimisation, the "auto" minimiser for 20,000 steps,
+        then a damped Newton on the sparse Gauss–Newton Hessian (`generators._newton`) for up
+        to 40 solves, and so on in turn (`steps` counts both, ``extra["newton_solves"]`` the
+        solves). All stop on the same convergence test.
     boundaries : calippso.Boundaries, optional
         The container: periodic along every axis (None, the default), flat walls at 0 and
         L along some axes (`Boundaries.walls`), or a cylinder (`Boundaries.cylinder`). A
@@ -480,7 +553,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         more than 1e-12 σ) without rattlers, removed recursively (pairs i < j, int64,
         shape (M, 2), sorted lexicographically). `reduced_pressure` is nan (soft spheres
         have no hard-sphere pressure); `steps` counts FIRE steps (L-BFGS force
-        evaluations); `history` holds one record per rung of the ladder (steps so far, φ
+        evaluations, Newton solves); `history` holds one record per rung of the ladder (steps so far, φ
         before the shrink, pressure, nan).
         `extra`: ``pressure`` (final soft pressure, ε / (mean diameter)^d),
         ``minimisations``, ``fire_steps``, ``rebuilds`` (list rebuilds), ``phi_soft`` (φ
@@ -494,7 +567,8 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         ``isostaticity_gap`` (N_c − (d (N_s − 1) + 1) of `contacts`), ``stable``
         (N_s), ``overlap_correction`` (round-off shrink after an independent check, ~0),
         ``resumed`` (whether the run continued from a checkpoint; `wall_time` then adds up
-        every call's time), ``minimiser`` ("fire" or "lbfgs": the one that ran).
+        every call's time), ``minimiser`` ("fire", "lbfgs" or "newton": the one that ran), ``newton_solves``
+        (the Newton solves among `steps`).
         With walls the packing carries the boundaries and lies inside its container;
         `contacts` holds particle pairs only (the stable particles are found with the wall
         contacts counted), and ``wall_contacts`` (particle, wall) pairs, walls 2μ at 0 and
@@ -704,4 +778,4 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float,
                "isostaticity_gap": (int(contacts.shape[0] + wall_contacts.shape[0])
                                     - system.isostatic_count(stable)),
                "overlap_correction": correction, "resumed": resumed,
-               "minimiser": system.minimiser})
+               "minimiser": system.minimiser, "newton_solves": system.solves})
