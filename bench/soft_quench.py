@@ -8,8 +8,9 @@ time and φ_J (a refused network is reported as such). ``--kernels`` times inste
 kernel of the quench with 1 and 2 threads, on the state after the first `--rungs`
 minimisations of the ladder (one row per kernel and size: µs per call, speed-up).
 Prints one row per run: the packing fraction after the shrink, the final soft pressure,
-minimisations, steps (FIRE steps or L-BFGS force evaluations), the steps of the slowest
-minimisation over the median of the others, wall and CPU seconds (all threads), and the
+minimisations, steps (FIRE steps, L-BFGS force evaluations or Newton solves; with
+``--minimiser newton`` the Newton solves among them), the steps and the wall time of the
+slowest minimisation over the median of the others, wall and CPU seconds (all threads), and the
 isostaticity gap N_c − (d (N_s − 1) + 1) of the overlap network handed to `calippso.jam`.
 The JSON file holds the same rows. The first run includes Numba compilation unless the
 on-disk cache is warm.
@@ -45,6 +46,28 @@ def slowest_over_median(steps: np.ndarray) -> float:
     return float(steps[slowest] / np.median(np.delete(steps, slowest)))
 
 
+def rung_times(call):
+    """`call()` with the wall time of every minimisation recorded: its result and the seconds
+    spent at each pressure of the ladder (its tightening rounds included), in order."""
+    quench = importlib.import_module("generators.soft_quench")
+    real = quench._SoftSpheres.minimise
+    spent: dict[float, float] = {}
+
+    def timed(system, pressure, *args, **kwargs):
+        clock = time.perf_counter()
+        try:
+            return real(system, pressure, *args, **kwargs)
+        finally:
+            spent[pressure] = spent.get(pressure, 0.0) + time.perf_counter() - clock
+
+    quench._SoftSpheres.minimise = timed
+    try:
+        result = call()
+    finally:
+        quench._SoftSpheres.minimise = real
+    return result, np.array(list(spent.values()))
+
+
 def jam_row(quench) -> dict:
     """`calippso.jam` on the quench's packing with its network (network first required)."""
     import calippso
@@ -67,8 +90,8 @@ def run(n: int, d: int, seed: int, target_pressure: float, minimiser: str,
     reads it back instead of quenching (and `calippso.read` reads it)."""
     sizes = dist.bidisperse(n, 1.4, 0.5, seed) if d == 2 else dist.monodisperse(n)
     wall, cpu = time.perf_counter(), time.process_time()
-    result = generators.soft_quench(sizes, d, seed=seed, target_pressure=target_pressure,
-                                    minimiser=minimiser)
+    result, seconds = rung_times(lambda: generators.soft_quench(
+        sizes, d, seed=seed, target_pressure=target_pressure, minimiser=minimiser))
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     if save is not None:
         save.mkdir(parents=True, exist_ok=True)
@@ -84,6 +107,8 @@ def run(n: int, d: int, seed: int, target_pressure: float, minimiser: str,
            "steps": extra["fire_steps"], "newton_solves": extra["newton_solves"],
            "steps_per_rung": per_rung.tolist(),
            "slowest_over_median": slowest_over_median(per_rung),
+           "seconds_per_rung": seconds.tolist(),
+           "slowest_over_median_s": slowest_over_median(seconds),
            "rebuilds": extra["rebuilds"], "wall_s": wall, "cpu_s": cpu,
            "isostaticity_gap": extra["isostaticity_gap"], "stable": extra["stable"],
            "max_overlap": extra["max_overlap"], "status": result.status}
@@ -153,7 +178,8 @@ def kernel_rows(n: int, d: int, seed: int, rungs: int) -> list[dict]:
 def format_row(row: dict) -> str:
     line = (f"{row['n']:>6} {row['d']:>2} {row['seed']:>4} {row['minimiser']:>6} "
             f"{row['phi']:>8.5f} {row['pressure']:>8.2e} {row['minimisations']:>4} "
-            f"{row['steps']:>9} {row['slowest_over_median']:>6.1f} {row['wall_s']:>7.1f} "
+            f"{row['steps']:>9} {row['newton_solves']:>6} {row['slowest_over_median']:>6.1f} "
+            f"{row['slowest_over_median_s']:>6.1f} {row['wall_s']:>7.1f} "
             f"{row['cpu_s']:>7.1f} {row['isostaticity_gap']:>+7d}")
     if "jam_error" in row:
         return line + f"  jam refused after {row['jam_s']:.1f} s: {row['jam_error']}"
@@ -200,7 +226,8 @@ def main() -> None:
         return
 
     header = (f"{'N':>6} {'d':>2} {'seed':>4} {'method':>6} {'phi':>8} {'p':>8} {'min':>4} "
-              f"{'steps':>9} {'max/md':>6} {'wall s':>7} {'CPU s':>7} {'iso gap':>7}")
+              f"{'steps':>9} {'solves':>6} {'max/md':>6} {'t/md':>6} {'wall s':>7} {'CPU s':>7} "
+              f"{'iso gap':>7}")
     print(header + (f" {'jam s':>6} {'LPs':>4} {'phi_J':>8} {'both s':>7}" if args.jam
                     else ""))
     rows = []

@@ -26,7 +26,7 @@ from generators.initial import poisson
 quench_module = importlib.import_module("generators.soft_quench")
 
 #: Steps of the first-order phase before Newton takes over, in the quenches of this file.
-AFTER_STEPS = 300
+AFTER_STEPS = 1000
 #: Finite-difference step of the derivative checks (mean diameters, and in λ).
 STEP = 1e-6
 #: (diameters, d, seed, φ band: as in tests/test_generators_soft_quench.py).
