@@ -46,7 +46,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ._fire import CONVERGED, OUT_OF_STEPS, REBUILD
+from ._fire import CONVERGED, OUT_OF_STEPS, REBUILD, container_volume
 
 __all__ = ["LOG_SCALE", "STATE_SIZE", "Terms", "evaluate", "gradient", "hessian", "new_state",
            "newton_run"]
@@ -302,11 +302,13 @@ def newton_run(x: np.ndarray, f: np.ndarray, s: np.ndarray, box: np.ndarray,
     """
     n, d = x.shape
     root_mass = np.sqrt(n * d)
-    volume = float(np.prod(box)) * (np.pi / 4.0 if cylinder[0] >= 0 else 1.0)
+    volume = container_volume(box, cylinder)
     largest = float(s.max())
     log_scale, mu, nu = state[LOG_SCALE], state[MU], state[NU]
 
-    def measure(positions: np.ndarray, log_a: float):
+    def measure(positions: np.ndarray, log_a: float
+                ) -> tuple[Terms, np.ndarray, float, float]:
+        """The overlapping terms at (positions, λ = log_a), ∂E/∂x, ∂H/∂u and the pressure."""
         terms = evaluate(positions, s, float(np.exp(log_a)), box, first, second, periodic,
                          cylinder)
         grad_x, virial = gradient(terms, n)

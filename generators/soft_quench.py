@@ -521,8 +521,8 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         a larger limit and the same checkpoint continues where it stopped.
     checkpoint : str or PathLike, optional
         File (``.npz``) holding the state of the run (`generators.checkpoint`). It is written
-        atomically at most every `checkpoint_every` seconds (at a list rebuild or every 1000
-        steps), when the steps run out, and at the end. A call with the same inputs
+        atomically at most every `checkpoint_every` seconds (at a list rebuild, every 1000
+        steps or every 10 Newton solves), when the steps run out, and at the end. A call with the same inputs
         resumes from it and returns the result of the uninterrupted run, bit for bit; a
         finished run returns from it at once. `max_steps` may differ between the calls.
     checkpoint_every : float
