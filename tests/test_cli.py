@@ -459,7 +459,7 @@ def test_generate_quench_minimiser_option(capfd, tmp_path):
     from generators.soft_quench import MINIMISERS, LBFGS_FROM_DIMENSION
 
     assert QUENCH_MINIMISERS == MINIMISERS
-    for minimiser in ("fire", "lbfgs", "auto"):
+    for minimiser in ("fire", "lbfgs", "auto", "newton"):
         code, out, _ = _run(capfd, "generate", "quench", "--n", "64", "--d", "3", "--seed", "1",
                             "--minimiser", minimiser, "-o", tmp_path / f"{minimiser}.npz",
                             "--json", "--quiet")
@@ -467,6 +467,6 @@ def test_generate_quench_minimiser_option(capfd, tmp_path):
         ran = json.loads(out)["minimiser"]
         auto = "lbfgs" if 3 >= LBFGS_FROM_DIMENSION else "fire"
         assert ran == (auto if minimiser == "auto" else minimiser)
-    code, _, err = _run(capfd, "generate", "quench", "--n", "64", "--minimiser", "newton",
+    code, _, err = _run(capfd, "generate", "quench", "--n", "64", "--minimiser", "bfgs",
                         "-o", tmp_path / "x.npz")
     assert code == 2 and "--minimiser" in err

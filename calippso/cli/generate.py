@@ -19,7 +19,7 @@ from .common import (call_with_boundaries, checkpoint_option, container_options,
 RANDOM_START_PHI = 0.3
 #: Values of ``generate quench --minimiser`` (those of `generators.soft_quench`, which the
 #: command does not import before it runs).
-QUENCH_MINIMISERS = ("auto", "fire", "lbfgs")
+QUENCH_MINIMISERS = ("auto", "fire", "lbfgs", "newton")
 
 
 def _generation_record(protocol: str, generation, output: Path) -> tuple[dict, str]:
@@ -121,8 +121,8 @@ def generate_ls(
     type=click.Choice(QUENCH_MINIMISERS),
     default="auto",
     show_default=True,
-    help="Minimiser of the enthalpy: FIRE, L-BFGS, or auto (chosen by the dimension, "
-    "docs/generators.md).",
+    help="Minimiser of the enthalpy: FIRE, L-BFGS, auto (chosen by the dimension), or newton "
+    "(auto's, then a damped Newton in turn; docs/generators.md).",
 )
 @checkpoint_option
 @container_options
