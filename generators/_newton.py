@@ -27,9 +27,9 @@ which a plain Newton step ignores; the line search and the damping globalise it,
 damping handles the zero modes (rattlers, translations) since K + μ I is non-singular.
 
 The factorised matrix is the Gauss–Newton part Σ ∇h ∇hᵀ (positive semi-definite; exact as
-p → 0): with the exact Hessian (`hessian(exact=True)`, whose stress term h ∇²h is negative
-along the floppy directions of a contact) the damped matrix was often indefinite, and from a
-settled d = 3, N = 1024 minimum Newton took 30 solves to 1e-6 of the mean force instead of 17.
+p → 0). The exact Hessian (`hessian(exact=True)`) adds the stress term h ∇²h, negative along
+the floppy directions of a contact, which can leave the damped matrix indefinite
+(docs/notes/soft-quench-protocol.md, Damped Newton).
 The actual decrease is
 (E₁ − E₀) + p* Ṽ₀ expm1(−d Δλ), free of the round-off of p* Ṽ; when the predicted decrease
 is within the round-off of E, a step is taken when it does not increase |∇H|.
