@@ -33,7 +33,7 @@ from numba import njit, prange
 
 from .periodic import NO_CYLINDER, has_walls, image_component, inverse_sides
 
-__all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "contact_pairs",
+__all__ = ["cell_order", "pair_lists", "harmonic_forces", "fire_run", "converged", "contact_pairs",
            "box_volume", "container_volume", "NO_CYLINDER", "CONVERGED", "REBUILD",
            "OUT_OF_STEPS"]
 
@@ -482,6 +482,16 @@ def container_volume(box: np.ndarray, cylinder: tuple[int, int]) -> float:
 # fire_run calls the parallel `harmonic_forces`. Compiled with parallel=True itself (it has
 # no prange), it loads safely from Numba's on-disk cache even when a new argument type makes
 # it compile anew; a cached serial caller of a parallel function crashes (numba issue #8578).
+@njit(cache=True)
+def converged(overlaps: int, largest2: float, mean_force: float, pressure: float,
+              target: float, tolerance: float, force_floor: float) -> bool:
+    """The convergence test of every minimiser of the enthalpy (FIRE, L-BFGS, Newton): some
+    pair overlaps, max_i |F_i|² (`largest2`) ≤ max(tolerance × the mean pair force,
+    `force_floor`)², and |p − p*| ≤ tolerance × p* (p* = `target`)."""
+    return (overlaps > 0 and largest2 <= max(tolerance * mean_force, force_floor) ** 2
+            and abs(pressure - target) <= tolerance * target)
+
+
 @njit(parallel=True, cache=True)
 def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np.ndarray,
              first: np.ndarray, second: np.ndarray, incoming_start: np.ndarray,
@@ -563,8 +573,7 @@ def fire_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, s: np.ndarray, box: np
         pressure = virial * scale**d / (d * volume)
         f_scale = d * volume / scale**d * (target - pressure) / root_mass
         mean_force = force_sum / overlaps if overlaps > 0 else 0.0
-        if (overlaps > 0 and largest2 <= max(tolerance * mean_force, force_floor) ** 2
-                and abs(pressure - target) <= tolerance * target):
+        if converged(overlaps, largest2, mean_force, pressure, target, tolerance, force_floor):
             code = CONVERGED
             break
         if steps >= max_steps:

@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._fire import (CONVERGED, OUT_OF_STEPS, REBUILD, container_volume, harmonic_forces,
-                    work_array)
+from ._fire import (CONVERGED, OUT_OF_STEPS, REBUILD, container_volume, converged,
+                    harmonic_forces, work_array)
 
 __all__ = ["HISTORY", "STATE_SIZE", "lbfgs_run", "new_state"]
 
@@ -278,8 +278,7 @@ def lbfgs_run(x, f, s, box, first, second, incoming_start, incoming, x_built, sk
     code = OUT_OF_STEPS
     while True:
         mean_force = force_sum / overlaps if overlaps > 0 else 0.0
-        if (overlaps > 0 and largest2 <= max(tolerance * mean_force, force_floor) ** 2
-                and abs(pressure - target) <= tolerance * target):
+        if converged(overlaps, largest2, mean_force, pressure, target, tolerance, force_floor):
             code = CONVERGED
             break
         if steps >= max_steps:

@@ -46,7 +46,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ._fire import CONVERGED, OUT_OF_STEPS, REBUILD, container_volume
+from ._fire import CONVERGED, OUT_OF_STEPS, REBUILD, converged, container_volume
 
 __all__ = ["LOG_SCALE", "STATE_SIZE", "Terms", "evaluate", "gradient", "hessian", "new_state",
            "newton_run"]
@@ -325,8 +325,7 @@ def newton_run(x: np.ndarray, f: np.ndarray, s: np.ndarray, box: np.ndarray,
         overlaps = int(np.count_nonzero(terms.h))
         mean_force = float(np.sum(terms.h / terms.sigma)) / overlaps if overlaps else 0.0
         largest2 = float(np.max(np.sum(grad_x ** 2, axis=1)))
-        if (overlaps > 0 and largest2 <= max(tolerance * mean_force, force_floor) ** 2
-                and abs(pressure - target) <= tolerance * target):
+        if converged(overlaps, largest2, mean_force, pressure, target, tolerance, force_floor):
             code = CONVERGED
             break
         if steps >= max_steps:
