@@ -51,12 +51,16 @@ CHILD = textwrap.dedent("""
     from calippso.neighbors import NeighborSearch
     from calippso.network import walls_near_contact
     d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
-    options, generator, quench_pressure = json.loads(sys.argv[5]), sys.argv[6], float(sys.argv[7])
+    options, generator, quench_pressure = json.loads(sys.argv[5]), sys.argv[6], sys.argv[7]
     seed, container = int(sys.argv[8]), sys.argv[9]
     boundaries = calippso.Boundaries.all_periodic(d)
     if container != "periodic":
         kind, axes = container.split(":")
         boundaries = getattr(calippso.Boundaries, kind)(d, axes.split(","))
+    if quench_pressure == "default":
+        from generators import default_target_pressure
+        quench_pressure = default_target_pressure(n, d, boundaries)
+    quench_pressure = float(quench_pressure)
     name = (f"ls_d{d}_n{n}_p{pressure:g}" if generator == "ls"
             else f"quench_d{d}_n{n}_p{quench_pressure:g}")
     if container != "periodic":
@@ -113,14 +117,15 @@ CHILD = textwrap.dedent("""
 
 def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "",
              options: dict | None = None, generator: str = "ls",
-             quench_pressure: float = 1e-7, seed: int = 1,
+             quench_pressure: float | None = None, seed: int = 1,
              container: str = "periodic") -> dict:
     """Generate (or read from `cache`) and jam one input in a subprocess with the jam
     `options`, in the `container` ("periodic", "walls:AXES" or "cylinder:AXES"); the row as
     a dict."""
     try:
         done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache,
-                               json.dumps(options or {}), generator, str(quench_pressure),
+                               json.dumps(options or {}), generator,
+                               "default" if quench_pressure is None else str(quench_pressure),
                                str(seed), container],
                               capture_output=True, text=True, timeout=timeout, check=True)
     except subprocess.TimeoutExpired:
@@ -218,8 +223,9 @@ def main() -> None:
     parser.add_argument("--pressure", type=float, default=1e5)
     parser.add_argument("--generator", choices=["ls", "quench"], default="ls",
                         help="LS to --pressure, or the soft-sphere quench (network first)")
-    parser.add_argument("--quench-pressure", type=float, default=1e-7,
-                        help="target_pressure of the soft-sphere quench")
+    parser.add_argument("--quench-pressure", type=float, default=None,
+                        help="target_pressure of the soft-sphere quench (default: its own, "
+                             "generators.default_target_pressure)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the generator")
     parser.add_argument("--timeout", type=float, default=3600.0, help="seconds per case")
     parser.add_argument("--json", help="also write the rows to this JSON file")

@@ -82,13 +82,15 @@ def jam_row(quench) -> dict:
             "phi_j": result.phi, "isostatic": bool(result.isostatic)}
 
 
-def run(n: int, d: int, seed: int, target_pressure: float, minimiser: str,
+def run(n: int, d: int, seed: int, target_pressure: float | None, minimiser: str,
         jam: bool, save: Path | None = None) -> dict:
     """One quench of N monodisperse spheres (bidisperse 1:1.4 in d = 2); its table row. With
     `save`, the packing and its network go to ``save/quench_d{d}_n{n}_p{target_pressure:g}
     _seed{seed}.npz``, the name under which ``bench/scale.py --generator quench --cache save``
     reads it back instead of quenching (and `calippso.read` reads it)."""
     sizes = dist.bidisperse(n, 1.4, 0.5, seed) if d == 2 else dist.monodisperse(n)
+    if target_pressure is None:
+        target_pressure = generators.default_target_pressure(n, d)
     wall, cpu = time.perf_counter(), time.process_time()
     result, seconds = rung_times(lambda: generators.soft_quench(
         sizes, d, seed=seed, target_pressure=target_pressure, minimiser=minimiser))
@@ -195,7 +197,8 @@ def main() -> None:
     parser.add_argument("--sizes", type=int, nargs="+", default=[1024, 4096, 16384])
     parser.add_argument("--d", type=int, default=3)
     parser.add_argument("--seeds", type=int, nargs="+", default=[1])
-    parser.add_argument("--target-pressure", type=float, default=1e-7)
+    parser.add_argument("--target-pressure", type=float, default=None,
+                        help="default: generators.default_target_pressure(N, d)")
     parser.add_argument("--minimiser", nargs="+", default=["auto"],
                         choices=["auto", "fire", "lbfgs", "newton"],
                         help="run each case with each of these")

@@ -22,7 +22,7 @@ from .fb import force_biased
 from .ls import lubachevsky_stillinger
 from .mls import closest_jamming
 from .result import GenerationResult
-from .soft_quench import soft_quench
+from .soft_quench import default_target_pressure, soft_quench
 
 __all__ = ["GenerationResult", "diameters", "poisson", "force_biased", "lubachevsky_stillinger",
-           "closest_jamming", "soft_quench"]
+           "closest_jamming", "soft_quench", "default_target_pressure"]

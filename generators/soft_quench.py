@@ -29,7 +29,7 @@ from .periodic import all_periodic, wrap_into_box
 from .initial import poisson
 from .result import GenerationResult, make_history
 
-__all__ = ["soft_quench"]
+__all__ = ["soft_quench", "default_target_pressure"]
 
 #: FIRE base time step, in units of √(m σ²/ε) for the smallest diameter σ, at d = 3. It is
 #: scaled by √(3/d) because the stiffest mode grows with the number of contacts (~2d).
@@ -60,6 +60,16 @@ TOUCH = 1e-12
 SHRINK_GAP = 1e-12
 #: phi_start defaults to this factor × a typical jamming density of the dimension.
 PHI_START_FACTOR = 1.12
+#: The default `target_pressure` (`default_target_pressure`): `EARLY_TARGET_PRESSURE` in a
+#: periodic box with at most `EARLY_STOP_MAX_N` particles in the `EARLY_STOP_DIMENSIONS`,
+#: else `LATE_TARGET_PRESSURE`. Stopping a decade earlier skips the slowest minimisations of
+#: the ladder, and `calippso.jam` still settles the network left there with no LP; larger
+#: packings, d = 5 and containers need the network of the lower pressure (measured in
+#: docs/notes/soft-quench-protocol.md; d = 2 was not).
+EARLY_TARGET_PRESSURE = 1e-6
+LATE_TARGET_PRESSURE = 1e-7
+EARLY_STOP_MAX_N = 4096
+EARLY_STOP_DIMENSIONS = (3, 4)
 #: The Verlet skin follows the rebuild rate. At each list rebuild within a minimisation it is
 #: multiplied by √((`REBUILD_COST` / steps since the last build) / w), w the share of the
 #: listed pairs that did not overlap at that build (by at most `SKIN_STEP` either way): the
@@ -465,8 +475,31 @@ def _check_box(box: np.ndarray, nominal: np.ndarray, skin: float, phi_start: flo
                          f"at φ = {max(densest, phi_start):.3g}); use more particles")
 
 
+def default_target_pressure(n: int, d: int, boundaries: Boundaries | None = None) -> float:
+    """The `target_pressure` that `soft_quench` takes when none is given (ε/⟨σ⟩^d).
+
+    `EARLY_TARGET_PRESSURE` (1e-6) for periodic packings of at most `EARLY_STOP_MAX_N`
+    (4096) particles in d = 3 and 4, `LATE_TARGET_PRESSURE` (1e-7) otherwise (larger
+    packings, d = 2 and d ≥ 5, containers): where stopping a decade earlier was measured to
+    save time and `calippso.jam` still certified every quench with no LP
+    (docs/notes/soft-quench-protocol.md).
+
+    Parameters
+    ----------
+    n : int
+        Number of particles.
+    d : int
+        Dimension.
+    boundaries : Boundaries, optional
+        The container; None: periodic along every axis.
+    """
+    periodic = boundaries is None or boundaries.is_periodic
+    early = periodic and n <= EARLY_STOP_MAX_N and d in EARLY_STOP_DIMENSIONS
+    return EARLY_TARGET_PRESSURE if early else LATE_TARGET_PRESSURE
+
+
 def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = None,
-                target_pressure: float = 1e-7, force_tolerance: float = 1e-6,
+                target_pressure: float | None = None, force_tolerance: float = 1e-6,
                 progress: bool = False, skin: float = 0.2, max_steps: int = 50_000_000,
                 checkpoint: str | os.PathLike | None = None,
                 checkpoint_every: float = 60.0, minimiser: str = "auto",
@@ -501,10 +534,11 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         Packing fraction of the random centres, in (0, 1); default 1.12 × a typical jamming
         density (0.94, 0.69, 0.53, 0.35 in d = 2, 3, 4, 5). The first minimisation moves it
         to where the pressure is 1e-2.
-    target_pressure : float
+    target_pressure : float, optional
         The last minimum has half this pressure, in units of ε / (mean diameter)^d. The
         largest overlap is then ~5 × the target (d = 3), and the contact gaps after the
-        shrink lie between 1e-12 and that overlap.
+        shrink lie between 1e-12 and that overlap. Default: `default_target_pressure` (1e-6
+        for periodic packings of up to 4096 particles in d = 3 and 4, 1e-7 otherwise).
     force_tolerance : float
         Tightest convergence of the last minimisation: max_i |F_i| at or below this × the
         mean force of the overlapping pairs (or the round-off floor of the forces,
@@ -556,7 +590,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         evaluations, Newton solves); `history` holds one record per rung of the ladder (steps so far, φ
         before the shrink, pressure, nan).
         `extra`: ``pressure`` (final soft pressure, ε / (mean diameter)^d),
-        ``minimisations``, ``fire_steps``, ``rebuilds`` (list rebuilds), ``phi_soft`` (φ
+        ``target_pressure`` (the one used, given or default), ``minimisations``, ``fire_steps``, ``rebuilds`` (list rebuilds), ``phi_soft`` (φ
         before the shrink), ``shrink_factor`` (diameters were multiplied by it),
         ``max_overlap`` (largest relative overlap 1 − r/σ before the shrink),
         ``contact_overlaps`` (1 − r/σ of each pair of `contacts` before the shrink, shape
@@ -592,6 +626,9 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     typical = phi_estimate(d)
     phi_start = check_phi(min(0.95, PHI_START_FACTOR * typical) if phi_start is None
                           else phi_start, "phi_start")
+    boundaries = check_boundaries(boundaries, d, "soft_quench", BOUNDARY_KINDS)
+    if target_pressure is None:
+        target_pressure = default_target_pressure(diameters.shape[0], d, boundaries)
     target_pressure = check_positive(target_pressure, "target_pressure")
     force_tolerance = check_positive(force_tolerance, "force_tolerance")
     skin = check_positive(skin, "skin")
@@ -601,7 +638,6 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         raise ValueError(f"minimiser must be one of {', '.join(MINIMISERS)}, got {minimiser!r}")
     if minimiser == "auto":
         minimiser = "lbfgs" if d >= LBFGS_FROM_DIMENSION else "fire"
-    boundaries = check_boundaries(boundaries, d, "soft_quench", BOUNDARY_KINDS)
     signature = {"diameters": digest(diameters), "d": d, "seed": int(seed),
                  "phi_start": phi_start, "target_pressure": target_pressure,
                  "force_tolerance": force_tolerance, "skin": skin, "minimiser": minimiser}
@@ -640,8 +676,8 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     else:
         status = f"converged at pressure {pressure:.3g} <= target {target_pressure:.3g}"
         pause(True)
-    return _shrunk_result(system, diameters, mean, boundaries, run.rows, pressure, status,
-                          wall - earlier_wall, saved is not None)
+    return _shrunk_result(system, diameters, mean, boundaries, run.rows, pressure,
+                          target_pressure, status, wall - earlier_wall, saved is not None)
 
 
 @dataclass
@@ -742,10 +778,10 @@ class _Run:
 
 
 def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float,
-                   boundaries: Boundaries, rows: list, pressure: float, status: str,
-                   started: float, resumed: bool) -> GenerationResult:
+                   boundaries: Boundaries, rows: list, pressure: float, target_pressure: float,
+                   status: str, started: float, resumed: bool) -> GenerationResult:
     """Shrink the overlaps (with particles and walls) away, find the network without
-    rattlers, build the result."""
+    rattlers, build the result (`target_pressure`: the one the run was given)."""
     n, d = system.x.shape
     i, j, gaps = system.overlap_network()
     particle, wall, wall_gap = system.wall_overlaps()
@@ -769,7 +805,8 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float,
         packing=packing, reduced_pressure=float("nan"), steps=system.steps,
         wall_time=time.perf_counter() - started, history=make_history(rows), status=status,
         contacts=contacts,
-        extra={"pressure": float(pressure), "minimisations": len(rows), "fire_steps": system.steps,
+        extra={"pressure": float(pressure), "target_pressure": target_pressure,
+               "minimisations": len(rows), "fire_steps": system.steps,
                "rebuilds": system.rebuilds, "phi_soft": system.phi, "shrink_factor": shrink,
                "max_overlap": -worst, "contact_overlaps": -gaps[kept],
                "near_contacts": np.stack([near_i[near], near_j[near]], axis=1),

@@ -383,7 +383,7 @@ def test_quench_checkpoint_of_another_run_is_refused(tmp_path):
                                          r"in seed \(checkpoint 7, this call 8\)"):
         generators.soft_quench(sizes, d, seed=8, checkpoint=path, minimiser="fire")
     with pytest.raises(ValueError, match=r"differs in target_pressure"):
-        generators.soft_quench(sizes, d, seed=7, target_pressure=1e-6, checkpoint=path,
+        generators.soft_quench(sizes, d, seed=7, target_pressure=3e-7, checkpoint=path,
                                minimiser="fire")
     with pytest.raises(ValueError, match=r"differs in minimiser"):
         generators.soft_quench(sizes, d, seed=7, minimiser="lbfgs", checkpoint=path)

@@ -157,10 +157,32 @@ def test_auto_minimiser_is_lbfgs_from_d4(d, expected):
     np.testing.assert_array_equal(auto.packing.positions, chosen.packing.positions)
 
 
+@pytest.mark.parametrize("n, d, container, expected", [
+    (1024, 3, None, 1e-6), (4096, 3, None, 1e-6), (1024, 4, None, 1e-6),
+    (8192, 3, None, 1e-7), (1024, 2, None, 1e-7), (1024, 5, None, 1e-7),
+    (1024, 3, "walls", 1e-7)])
+def test_default_target_pressure(n, d, container, expected):
+    """A decade earlier where `jam` settles the network left there (periodic, N ≤ 4096,
+    d = 3, 4); 1e-7 for larger packings, d = 2 and 5, and containers."""
+    from calippso import Boundaries
+
+    boundaries = None if container is None else Boundaries.walls(d, ["x"])
+    assert generators.default_target_pressure(n, d, boundaries) == expected
+
+
+def test_the_default_target_pressure_is_the_one_used():
+    sizes = dist.monodisperse(64)
+    default = generators.soft_quench(sizes, 3, seed=1, max_steps=300)
+    given = generators.soft_quench(sizes, 3, seed=1, max_steps=300,
+                                   target_pressure=generators.default_target_pressure(64, 3))
+    assert default.extra["target_pressure"] == given.extra["target_pressure"] == 1e-6
+    np.testing.assert_array_equal(default.packing.positions, given.packing.positions)
+
+
 def test_a_start_below_jamming_is_compressed():
     result = generators.soft_quench(dist.monodisperse(64), 3, seed=2, phi_start=0.3)
     assert result.history["phi"][0] > 0.55 and 0.6 < result.packing.phi < 0.66
-    assert result.extra["pressure"] <= TARGET
+    assert result.extra["pressure"] <= result.extra["target_pressure"]
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -112,9 +112,9 @@ def generate_ls(
 @click.option(
     "--pressure",
     type=positive(float),
-    default=1e-7,
-    show_default=True,
-    help="Stop once the soft-sphere pressure is at or below this (energy / mean diameter^d).",
+    default=None,
+    help="Stop once the soft-sphere pressure is at or below this (energy / mean diameter^d). "
+    "Default: 1e-6 in a periodic box with N <= 4096 in d = 3, 4; else 1e-7.",
 )
 @click.option(
     "--minimiser",
