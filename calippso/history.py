@@ -70,6 +70,10 @@ class StopReason(enum.Enum):
     #: non-positive forces (the input's own, or an LP's) to a jamming point, which the
     #: Newton certificate proved.
     CERTIFIED_PIVOTS = "certified_pivots"
+    #: An LP met the tolerances, but no rigid contact network holds the packing: every
+    #: particle is a rattler, or the network is hypostatic (a packing with a floppy motion,
+    #: or a crystal whose forces the LP left on too few contacts). Not a jamming point.
+    NOT_RIGID = "not_rigid"
     #: ``max_iters`` LPs were solved without convergence.
     MAX_ITERS = "max_iters"
     #: The last `STALL_LPS` LPs gained nothing in Γ and their displacements did not shrink.
@@ -276,6 +280,8 @@ _HEADS = {
     StopReason.CONVERGED: "Jammed: converged after {lps} LPs",
     StopReason.CERTIFIED_NEWTON: "Jammed: converged after {lps} LPs",
     StopReason.CERTIFIED_PIVOTS: "Jammed: reached by contact pivots after {lps} LPs",
+    StopReason.NOT_RIGID: ("Not jammed: the LPs converged after {lps} LPs, but no rigid contact "
+                           "network holds the packing"),
     StopReason.STOPPED_BY_CALLBACK: "Stopped by the callback after {lps} LPs",
     StopReason.STALLED: ("Stalled after {lps} LPs: the last {stall} gained nothing in Gamma "
                          "and their displacements did not shrink"),

@@ -165,6 +165,22 @@ def test_crystal_runs_end_without_overlap_or_error():
         assert result.phi >= start.phi * (1 - 1e-12)
 
 
+def test_a_converged_run_that_nothing_holds_is_not_called_jammed():
+    """Monodisperse discs (N = 512, quench seed 2) crystallise in patches: the LPs meet the
+    tolerances, but the network left is hypostatic, so no rigid network holds the packing.
+    The run says so (`StopReason.NOT_RIGID`, not converged), instead of claiming a jamming
+    point; the packing itself is still free of overlaps."""
+    import generators
+
+    quench = generators.soft_quench(generators.diameters.monodisperse(512), 2, seed=2,
+                                    target_pressure=1e-6)
+    result = jam(quench.packing, network=quench.contacts)
+    assert result.stop_reason is calippso.StopReason.NOT_RIGID
+    assert not result.converged and result.isostaticity_gap < 0
+    assert result.status.startswith("Not jammed: the LPs converged after")
+    assert overlap_free(result.packing) >= -OVERLAP_TOLERANCE
+
+
 @pytest.mark.parametrize("build", [
     lambda: lattices.square(8, 0.98),
     lambda: lattices.bcc(4, 0.98),

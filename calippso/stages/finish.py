@@ -83,6 +83,9 @@ def finish(run: Run, state: LoopState, network: ContactNetwork,
         run.history.note(f"not a certified jamming point: the LPs converged between walls "
                          f"with a hypostatic network (gap {gap:+d}), a floppy mode that "
                          f"moving particles out of their layers did not remove")
+    if reason is StopReason.CONVERGED and (network.n_stable == 0 or gap < 0):
+        # the tolerances were met, but no rigid network holds the packing
+        reason, converged = StopReason.NOT_RIGID, False
     notes = _final_notes(run, reason)
     history = run.history
     return JammingResult(
