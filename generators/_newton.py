@@ -308,7 +308,8 @@ def newton_run(x: np.ndarray, f: np.ndarray, s: np.ndarray, box: np.ndarray,
 
     def measure(positions: np.ndarray, log_a: float
                 ) -> tuple[Terms, np.ndarray, float, float]:
-        """The overlapping terms at (positions, λ = log_a), ∂E/∂x, ∂H/∂u and the pressure."""
+        """The overlapping terms at (positions, λ = log_a), ∂E/∂x, ∂H/∂u and the
+        pressure."""
         terms = evaluate(positions, s, float(np.exp(log_a)), box, first, second, periodic,
                          cylinder)
         grad_x, virial = gradient(terms, n)

@@ -556,8 +556,8 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     checkpoint : str or PathLike, optional
         File (``.npz``) holding the state of the run (`generators.checkpoint`). It is written
         atomically at most every `checkpoint_every` seconds (at a list rebuild, every 1000
-        steps or every 10 Newton solves), when the steps run out, and at the end. A call with the same inputs
-        resumes from it and returns the result of the uninterrupted run, bit for bit; a
+        steps or every 10 Newton solves), when the steps run out, and at the end. A call
+        with the same inputs resumes from it and returns the result of the uninterrupted run, bit for bit; a
         finished run returns from it at once. `max_steps` may differ between the calls.
     checkpoint_every : float
         Smallest wall time in seconds between two checkpoint writes (0: at every pause).
@@ -587,12 +587,13 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         more than 1e-12 σ) without rattlers, removed recursively (pairs i < j, int64,
         shape (M, 2), sorted lexicographically). `reduced_pressure` is nan (soft spheres
         have no hard-sphere pressure); `steps` counts FIRE steps (L-BFGS force
-        evaluations, Newton solves); `history` holds one record per rung of the ladder (steps so far, φ
-        before the shrink, pressure, nan).
+        evaluations, Newton solves); `history` holds one record per rung of the ladder
+        (steps so far, φ before the shrink, pressure, nan).
         `extra`: ``pressure`` (final soft pressure, ε / (mean diameter)^d),
-        ``target_pressure`` (the one used, given or default), ``minimisations``, ``fire_steps``, ``rebuilds`` (list rebuilds), ``phi_soft`` (φ
-        before the shrink), ``shrink_factor`` (diameters were multiplied by it),
-        ``max_overlap`` (largest relative overlap 1 − r/σ before the shrink),
+        ``target_pressure`` (the one used, given or default), ``minimisations``,
+        ``fire_steps``, ``rebuilds`` (list rebuilds), ``phi_soft`` (φ before the shrink),
+        ``shrink_factor`` (diameters were multiplied by it), ``max_overlap`` (largest
+        relative overlap 1 − r/σ before the shrink),
         ``contact_overlaps`` (1 − r/σ of each pair of `contacts` before the shrink, shape
         (M,): the soft forces in units of ε/σ), ``near_contacts`` and ``near_gaps`` (the
         pairs that did not overlap but were closer than the largest overlap, shape (K, 2),
