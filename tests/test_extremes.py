@@ -167,16 +167,18 @@ def test_crystal_runs_end_without_overlap_or_error():
 
 def test_a_converged_run_that_nothing_holds_is_not_called_jammed():
     """Monodisperse discs (N = 512, quench seed 2) crystallise in patches: the LPs meet the
-    tolerances, but the network left is hypostatic, so no rigid network holds the packing.
-    The run says so (`StopReason.NOT_RIGID`, not converged), instead of claiming a jamming
-    point; the packing itself is still free of overlaps."""
+    tolerances, but the network left is hypostatic or empty (every particle a rattler; which
+    of the two depends on the LP solver's vertex among degenerate ones), so no rigid network
+    holds the packing. The run says so (`StopReason.NOT_RIGID`, not converged), instead of
+    claiming a jamming point; the packing itself is still free of overlaps."""
     import generators
 
     quench = generators.soft_quench(generators.diameters.monodisperse(512), 2, seed=2,
                                     target_pressure=1e-6)
     result = jam(quench.packing, network=quench.contacts)
     assert result.stop_reason is calippso.StopReason.NOT_RIGID
-    assert not result.converged and result.isostaticity_gap < 0
+    assert not result.converged and not result.isostatic
+    assert result.n_stable == 0 or result.isostaticity_gap < 0
     assert result.status.startswith("Not jammed: the LPs converged after")
     assert overlap_free(result.packing) >= -OVERLAP_TOLERANCE
 
