@@ -40,6 +40,7 @@ from .network_guess import check_network_hint
 from .newton import pinned_coordinates
 from .packing import Packing, wrap
 from .result import JammingResult
+from .routes import jam_by_route
 from .settings import JamSettings
 from .solvers.policy import LPAttempt, SolverPolicy, next_warm_start
 from .stages.finish import CLEANUP_STEP, finish
@@ -64,7 +65,8 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         tol_s: float = 1e-9, max_iters: int = 1000, verbose: bool = False,
         callback: Callable[[dict], bool | None] | None = None,
         checkpoint: str | os.PathLike | None = None, network=None,
-        on_lp: Callable[[LPAttempt], None] | None = None, **options) -> JammingResult:
+        on_lp: Callable[[LPAttempt], None] | None = None, route: str = "lp",
+        max_displacement: float | None = None, **options) -> JammingResult:
     """Bring a configuration of hard (hyper)spheres to its jamming point with CALiPPSO.
 
     Parameters
@@ -109,6 +111,18 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         offered as warm start, the `LPSolution` (None if the backend failed) and why the loop
         refused it (None if accepted). Its return value is ignored; an exception it raises
         ends the run and reaches the caller unchanged. For benchmarks and diagnostics.
+    route : {"lp", "relaxed", "auto"}
+        "lp" (default): the loop from the input. "relaxed": the input relaxed as soft
+        spheres first (`generators.relax`), its overlap network tried by network first,
+        then LPs if that fails; the jamming point is a nearby one, not the loop's. "auto":
+        the relaxed route where the LP route is predicted to be slow
+        (`calippso.routes.lp_route_slow`: N ≥ 1024 and an input far from a jamming point),
+        said in the notes. Every route records on the result how far the jamming point lies
+        from the input (`route`, `displacement_max`, `displacement_median`, `phi_input`).
+    max_displacement : float, optional
+        Largest distance a particle may move from the input, in mean diameters; a route
+        that would move one further raises JammingError. None: 0.25 on the relaxed route,
+        no bound on the LP route.
     **options
         Further `JamSettings` fields (e.g. ``network_first``, ``initial_step``,
         ``max_step``, ``contact_threshold``, ``feasibility_tolerance``).
@@ -130,17 +144,22 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         registered (``solver``, ``fallback_solvers``) or cannot run here.
     JammingError
         Every backend failed on an LP (the exception keeps the last valid configuration),
-        or ``network_first="require"`` and no guessed network was certified.
+        ``network_first="require"`` and no guessed network was certified, or the route
+        moved a particle further than `max_displacement`.
     """
     settings = JamSettings.from_options(solver=solver, tol_gamma=tol_gamma, tol_s=tol_s,
                                         max_iters=max_iters, verbose=verbose, **options)
-    start = time.perf_counter()
     packing = as_packing(packing, diameters, box)
     check_enough_particles(packing.n, packing.d)
-    hint = None if network is None else check_network_hint(network, packing.n)
-    run, state, saver, hint = _start(packing, settings, callback, checkpoint, start, hint,
-                                     on_lp)
-    return _run(run, state, saver, hint)
+
+    def loop(start_packing: Packing, hint, saved) -> JammingResult:
+        start = time.perf_counter()
+        hint = None if hint is None else check_network_hint(hint, start_packing.n)
+        run, state, saver, hint = _start(start_packing, settings, callback, saved, start,
+                                         hint, on_lp)
+        return _run(run, state, saver, hint)
+
+    return jam_by_route(packing, route, max_displacement, network, checkpoint, loop)
 
 
 def initial_step_bound(gap: float, settings: JamSettings) -> float:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["minimum_image", "wrap", "image_component", "wrap_coordinate"]
+__all__ = ["minimum_image", "wrap", "displacements", "image_component", "wrap_coordinate"]
 
 
 def minimum_image(delta: np.ndarray, box: np.ndarray,
@@ -78,6 +78,34 @@ def wrap(positions: np.ndarray, box: np.ndarray,
     inside[inside >= box[axes]] = 0.0
     wrapped[:, axes] = inside
     return wrapped
+
+
+def displacements(start: np.ndarray, end: np.ndarray, box: np.ndarray,
+                  periodic: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """How far each particle lies from its start, the common translation along the periodic
+    axes taken out (it moves no particle relative to another).
+
+    Parameters
+    ----------
+    start, end : ndarray, shape (N, d)
+        The two configurations of the same particles (length units).
+    box : ndarray, shape (d,)
+        Box sides L_μ (length units).
+    periodic : ndarray, shape (d,), bool, optional
+        Periodic axes; None: all of them.
+
+    Returns
+    -------
+    lengths : ndarray, shape (N,)
+        |end_i − start_i − t| at the minimum image (length units).
+    translation : ndarray, shape (d,)
+        The common translation t: the mean minimum-image displacement along the periodic
+        axes, 0 along the others.
+    """
+    delta = minimum_image(end - start, box, periodic)
+    mask = np.ones(box.shape[0], dtype=bool) if periodic is None else np.asarray(periodic)
+    translation = np.where(mask, delta.mean(axis=0), 0.0)
+    return np.linalg.norm(delta - translation, axis=1), translation
 
 
 def image_component(dx: float, length: float, inverse: float) -> float:

@@ -20,6 +20,10 @@ wall_time                   () float64       seconds from the call to the verifi
 force_balance               () float64       max_i |Σ_j f_ij n_ij| / mean force (stable i)
 dual_normalization          () float64       Σ λ_ij σ_ij² over contacts (1 up to round-off)
 solver                      () str           backend name
+route                       () str           "lp" or "relaxed" (`calippso.routes`)
+phi_input                   () float64       φ of the input
+displacement_max            () float64       largest distance of a particle from the input
+displacement_median         () float64       median distance (both in mean input diameters)
 history_<column>            (records,)       one entry per stage, see `HISTORY_COLUMNS`
 ==========================  ===============  ===============================================
 
@@ -50,6 +54,7 @@ from .history import (HISTORY_COLUMNS, HISTORY_DTYPE, StopReason, empty_history,
                       reason_from_status)
 from .boundaries import axis_name
 from .packing import Packing, packing_of
+from .touching import TOUCHING_GAP, Touching
 
 __all__ = ["JammingResult", "load_result", "HISTORY_COLUMNS", "empty_history", "StopReason"]
 
@@ -110,6 +115,15 @@ class JammingResult:
         Their force magnitudes, in the units of `forces` (all forces together have mean 1);
         the force on the particle points into the container, along +e_μ from the wall at 0,
         towards the cylinder's axis from the cylinder.
+    route : str
+        How the jamming point was reached (`calippso.routes`): "lp" (the CALiPPSO loop from
+        the input) or "relaxed" (from the input relaxed as soft spheres); "" when not known.
+    phi_input : float
+        φ of the input (NaN when not known); `phi_change` is φ_J − φ_input.
+    displacement_max, displacement_median : float
+        Largest and median distance of a particle from its place in the input (minimum
+        image, the common translation along periodic axes taken out), in mean diameters of
+        the input; NaN when not known.
     """
 
     packing: Packing
@@ -128,6 +142,10 @@ class JammingResult:
     notes: list[str] = field(default_factory=list)
     wall_contacts: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
     wall_forces: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    route: str = ""
+    phi_input: float = float("nan")
+    displacement_max: float = float("nan")
+    displacement_median: float = float("nan")
 
     @property
     def d(self) -> int:
@@ -138,6 +156,11 @@ class JammingResult:
     def phi(self) -> float:
         """Jamming packing fraction φ_J."""
         return self.packing.phi
+
+    @property
+    def phi_change(self) -> float:
+        """φ_J − φ of the input (NaN when the input's φ is not known)."""
+        return self.phi - self.phi_input
 
     @property
     def n_stable(self) -> int:
@@ -220,6 +243,23 @@ class JammingResult:
         return float(np.count_nonzero(self.rattlers)) / self.packing.n
 
     @property
+    def touching(self) -> "Touching":
+        """Pairs that touch outside the contact network (relative gap at most
+        `calippso.touching.TOUCHING_GAP`): stable pairs and particle–wall pairs that carry
+        zero force in the certificate (`calippso.touching`). Counted as contacts, they would
+        raise the isostaticity gap by their number."""
+        from .touching import touching_outside_network
+
+        return touching_outside_network(self.packing, self.contacts, self.rattlers,
+                                        self.wall_contacts)
+
+    @property
+    def touching_pairs(self) -> np.ndarray:
+        """Pairs of stable particles (i < j) that touch outside `contacts`, shape (K, 2),
+        int64 (`touching`); empty for a packing without degenerate contacts."""
+        return self.touching.pairs
+
+    @property
     def contact_numbers(self) -> np.ndarray:
         """Contacts per particle, wall contacts included, shape (N,), int64 (0 for
         rattlers)."""
@@ -256,6 +296,19 @@ class JammingResult:
                 loads.append(f"cylinder: {self.cylinder_load:.6g}")
             lines.append(f"  {self.packing.boundaries.describe()}; {self.n_wall_contacts} wall "
                          f"contacts; force on the walls {', '.join(loads)}")
+        touching = self.touching
+        if len(touching):
+            walls = (f" and {touching.walls.shape[0]} particle-wall pair(s)"
+                     if touching.walls.shape[0] else "")
+            lines.append(f"  touching outside the network: {touching.pairs.shape[0]} pair(s) "
+                         f"of stable particles{walls} (gap <= {TOUCHING_GAP:g}), zero force "
+                         f"in the certificate; counted as contacts the isostaticity gap "
+                         f"would be {self.isostaticity_gap + len(touching):+d}")
+        if self.route:
+            lines.append(f"  route = {self.route}; from the input: max displacement = "
+                         f"{self.displacement_max:.2e}, median = "
+                         f"{self.displacement_median:.2e} (mean diameters), phi change = "
+                         f"{self.phi_change:+.2e}")
         if self.history.shape[0]:
             lines.append(f"  min gap = {self.history['min_gap'][-1]:.2e} (relative to sigma_ij)")
         return "\n".join(lines)
@@ -284,6 +337,10 @@ class JammingResult:
             "solver": np.array(self.solver),
             "stop_reason": np.array("" if self.stop_reason is None else self.stop_reason.value),
             "notes": np.array(_NOTES_SEPARATOR.join(self.notes)),
+            "route": np.array(self.route),
+            "phi_input": np.array(self.phi_input),
+            "displacement_max": np.array(self.displacement_max),
+            "displacement_median": np.array(self.displacement_median),
         }
         if not self.packing.boundaries.is_periodic:
             arrays.update(boundaries=np.array(str(self.packing.boundaries)),
@@ -349,6 +406,10 @@ class JammingResult:
             wall_contacts=np.asarray(arrays.get("wall_contacts", np.zeros((0, 2))),
                                      dtype=np.int64).reshape(-1, 2),
             wall_forces=np.asarray(arrays.get("wall_forces", np.zeros(0)), dtype=np.float64),
+            route=scalar("route", "", str),
+            phi_input=scalar("phi_input", float("nan"), float),
+            displacement_max=scalar("displacement_max", float("nan"), float),
+            displacement_median=scalar("displacement_median", float("nan"), float),
         )
 
 

@@ -10,7 +10,8 @@ instead of diameters and d. LS, FB and the soft quench also make packings betwee
 walls (``boundaries=calippso.Boundaries.walls(d, axes)``) or in a cylinder
 (``calippso.Boundaries.cylinder(d, axes)``), or continue such a ``start=`` (LS); MLS refuses
 both in one line. `poisson(diameters, d, *, phi, seed)` places
-random centres and returns the `calippso.Packing` itself. The generators build only on
+random centres and returns the `calippso.Packing` itself; `relax(packing)` runs the soft
+quench from a given configuration, in its own box. The generators build only on
 calippso's geometry base (`calippso.packing`, `calippso.periodic`, `calippso.neighbors`,
 `calippso.atomic`, `calippso.checkpoint`, `calippso.boundaries`, and `calippso.rattlers` for
 the rattler rule); importing this package never imports an LP solver.
@@ -23,6 +24,7 @@ from .ls import lubachevsky_stillinger
 from .mls import closest_jamming
 from .result import GenerationResult
 from .soft_quench import default_target_pressure, soft_quench
+from .relax import relax
 
 __all__ = ["GenerationResult", "diameters", "poisson", "force_biased", "lubachevsky_stillinger",
-           "closest_jamming", "soft_quench", "default_target_pressure"]
+           "closest_jamming", "soft_quench", "default_target_pressure", "relax"]

@@ -440,14 +440,14 @@ class _SoftSpheres(Resumable):
         return out
 
 
-def _pressure_ladder(final: float) -> np.ndarray:
-    """Pressures of the minimisations: geometric from `FIRST_PRESSURE` down to `final`, in
-    steps no larger than a factor 1/`PRESSURE_REDUCTION` (a single one if `final` is higher).
+def _pressure_ladder(final: float, first: float = FIRST_PRESSURE) -> np.ndarray:
+    """Pressures of the minimisations: geometric from `first` down to `final`, in steps no
+    larger than a factor 1/`PRESSURE_REDUCTION` (a single one if `final` is higher).
     """
-    if final >= FIRST_PRESSURE:
+    if final >= first:
         return np.array([final])
-    steps = int(np.ceil(np.log(FIRST_PRESSURE / final) / np.log(1.0 / PRESSURE_REDUCTION)))
-    ladder = FIRST_PRESSURE * (final / FIRST_PRESSURE) ** (np.arange(steps + 1) / steps)
+    steps = int(np.ceil(np.log(first / final) / np.log(1.0 / PRESSURE_REDUCTION)))
+    ladder = first * (final / first) ** (np.arange(steps + 1) / steps)
     ladder[-1] = final
     return ladder
 
@@ -628,17 +628,9 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     phi_start = check_phi(min(0.95, PHI_START_FACTOR * typical) if phi_start is None
                           else phi_start, "phi_start")
     boundaries = check_boundaries(boundaries, d, "soft_quench", BOUNDARY_KINDS)
-    if target_pressure is None:
-        target_pressure = default_target_pressure(diameters.shape[0], d, boundaries)
-    target_pressure = check_positive(target_pressure, "target_pressure")
-    force_tolerance = check_positive(force_tolerance, "force_tolerance")
-    skin = check_positive(skin, "skin")
-    if int(max_steps) != max_steps or max_steps < 1:
-        raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
-    if minimiser not in MINIMISERS:
-        raise ValueError(f"minimiser must be one of {', '.join(MINIMISERS)}, got {minimiser!r}")
-    if minimiser == "auto":
-        minimiser = "lbfgs" if d >= LBFGS_FROM_DIMENSION else "fire"
+    target_pressure, force_tolerance, skin, minimiser = check_quench_options(
+        diameters.shape[0], d, boundaries, target_pressure, force_tolerance, skin, max_steps,
+        minimiser)
     signature = {"diameters": digest(diameters), "d": d, "seed": int(seed),
                  "phi_start": phi_start, "target_pressure": target_pressure,
                  "force_tolerance": force_tolerance, "skin": skin, "minimiser": minimiser}
@@ -655,6 +647,62 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     system = _SoftSpheres(start.positions / mean, nominal, box, skin, minimiser,
                           boundaries.periodic, boundaries.cylinder_axes)
     run = _Run(_pressure_ladder(TARGET_AIM * target_pressure), force_tolerance, max_steps)
+    return quench_and_shrink(system, run, saver, diameters, boundaries, target_pressure,
+                             progress, wall)
+
+
+def check_quench_options(n: int, d: int, boundaries: Boundaries,
+                         target_pressure: float | None, force_tolerance: float, skin: float,
+                         max_steps: int, minimiser: str) -> tuple[float, float, float, str]:
+    """The options of a quench checked (ValueError naming the bad one), the default target
+    pressure filled in and minimiser="auto" resolved (see `soft_quench`).
+
+    Returns
+    -------
+    (target_pressure, force_tolerance, skin, minimiser)
+    """
+    if target_pressure is None:
+        target_pressure = default_target_pressure(n, d, boundaries)
+    target_pressure = check_positive(target_pressure, "target_pressure")
+    force_tolerance = check_positive(force_tolerance, "force_tolerance")
+    skin = check_positive(skin, "skin")
+    if int(max_steps) != max_steps or max_steps < 1:
+        raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
+    if minimiser not in MINIMISERS:
+        raise ValueError(f"minimiser must be one of {', '.join(MINIMISERS)}, got {minimiser!r}")
+    if minimiser == "auto":
+        minimiser = "lbfgs" if d >= LBFGS_FROM_DIMENSION else "fire"
+    return target_pressure, force_tolerance, skin, minimiser
+
+
+def quench_and_shrink(system: _SoftSpheres, run: "_Run", saver: Checkpoint,
+                      diameters: np.ndarray, boundaries: Boundaries, target_pressure: float,
+                      progress: bool, wall: float,
+                      box: np.ndarray | None = None) -> GenerationResult:
+    """Walk `system` down the ladder of `run` (resuming from `saver`'s checkpoint, saving
+    to it), then shrink it to hard contact (`_shrunk_result`).
+
+    Parameters
+    ----------
+    system : _SoftSpheres
+        The soft spheres at their start (lengths in mean diameters).
+    run : _Run
+        The ladder, tolerances and step limit.
+    saver : Checkpoint
+        Where the run's state is saved (disabled without a file).
+    diameters : ndarray, shape (N,)
+        The caller's diameters (length units).
+    boundaries : Boundaries
+    target_pressure : float
+        The target the run was given (for the status and ``extra``).
+    progress : bool
+        Show a tqdm bar.
+    wall : float
+        `time.perf_counter()` at the call.
+    box : ndarray, shape (d,), optional
+        Keep this box (the caller's units) and scale the diameters by one factor instead
+        (`generators.relax`); None: keep the diameters and size the box.
+    """
     earlier_wall = 0.0
     saved = saver.load()
     if saved is not None:
@@ -673,12 +721,13 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     finally:
         bar.close()
     if code == _fire.OUT_OF_STEPS:
-        status = f"stopped at max_steps = {max_steps} (pressure {pressure:.3g})"
+        status = f"stopped at max_steps = {run.max_steps} (pressure {pressure:.3g})"
     else:
         status = f"converged at pressure {pressure:.3g} <= target {target_pressure:.3g}"
         pause(True)
-    return _shrunk_result(system, diameters, mean, boundaries, run.rows, pressure,
-                          target_pressure, status, wall - earlier_wall, saved is not None)
+    return _shrunk_result(system, diameters, float(diameters.mean()), boundaries, run.rows,
+                          pressure, target_pressure, status, wall - earlier_wall,
+                          saved is not None, box)
 
 
 @dataclass
@@ -780,9 +829,12 @@ class _Run:
 
 def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float,
                    boundaries: Boundaries, rows: list, pressure: float, target_pressure: float,
-                   status: str, started: float, resumed: bool) -> GenerationResult:
+                   status: str, started: float, resumed: bool,
+                   box: np.ndarray | None = None) -> GenerationResult:
     """Shrink the overlaps (with particles and walls) away, find the network without
-    rattlers, build the result (`target_pressure`: the one the run was given)."""
+    rattlers, build the result (`target_pressure`: the one the run was given). The
+    packing has exactly `diameters` in a box sized accordingly, or, given `box`, that box
+    and `diameters` times one factor."""
     n, d = system.x.shape
     i, j, gaps = system.overlap_network()
     particle, wall, wall_gap = system.wall_overlaps()
@@ -795,11 +847,13 @@ def _shrunk_result(system: _SoftSpheres, diameters: np.ndarray, mean: float,
     shrink = (1.0 + min(worst, 0.0)) / (1.0 + SHRINK_GAP)
     near_i, near_j, near_gaps = system.pairs_below(-worst)
     near = near_gaps >= -TOUCH
-    # Lengths back in the caller's units, with the diameters exactly the given ones.
-    factor = mean / (system.scale * shrink)
-    positions = system.positions() * factor
-    box = system.box * factor
-    sizes, correction = remove_roundoff_overlap(positions, diameters, box, boundaries.periodic,
+    # Lengths back in the caller's units: the diameters exactly the given ones, or the box.
+    if box is None:
+        factor = mean / (system.scale * shrink)
+        positions, box, sizes = system.positions() * factor, system.box * factor, diameters
+    else:
+        positions, sizes = system.positions() * mean, diameters * (system.scale * shrink)
+    sizes, correction = remove_roundoff_overlap(positions, sizes, box, boundaries.periodic,
                                                 boundaries.cylinder_axes)
     packing = Packing(positions, sizes, box, boundaries).wrapped()
     return GenerationResult(

@@ -1,0 +1,207 @@
+"""Routes to a jamming point: the CALiPPSO loop from the input itself, or from the input
+relaxed as soft spheres.
+
+* ``route="lp"``: the loop of `calippso.ilp` from the input (network first, then LPs).
+* ``route="relaxed"``: the input is relaxed as harmonic soft spheres at its own positions and
+  diameters (`generators.relax`: inflated to a small pressure, walked down the soft quench's
+  pressure ladder, shrunk to hard contact in its own box); its overlap network goes to the
+  network-first stage, and to the LPs when that stage refuses it. Inputs compressed at a
+  constant rate (LS, FB → LS) keep collective channels along which the LPs slide them for
+  tens to hundreds of LPs (docs/notes/wandering-phase.md); the relaxation settles them in a
+  nearby basin instead. Its jamming point is another one than the loop's, nearby.
+* ``route="auto"``: the relaxed route where the LP route is predicted to be slow
+  (`lp_route_slow`), the LP route elsewhere.
+
+Every route records on the result how far its jamming point lies from the input. This
+module imports the generators (and numba) only when the relaxed route runs, and never the
+loop itself: `calippso.ilp.jam` hands it the loop as a function.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import replace
+from typing import Callable
+
+import numpy as np
+
+from .errors import JammingError
+from .neighbors import NeighborSearch
+from .network_guess import CANDIDATE_GAP, ROUNDOFF_GAP
+from .packing import Packing
+from .periodic import displacements
+from .result import JammingResult
+
+__all__ = ["ROUTES", "DEFAULT_MAX_DISPLACEMENT", "AUTO_MIN_PARTICLES", "check_route",
+           "lp_route_slow", "jam_by_route", "relaxed_checkpoint"]
+
+#: Values of ``jam(..., route=...)``.
+ROUTES = ("lp", "relaxed", "auto")
+#: The relaxed route's bound on the distance of any particle from its place in the input
+#: (mean diameters) when the caller gives none: a quarter of a diameter keeps every particle
+#: in its cage; the relaxation moves particles by ~1e-2 (docs/notes/relaxed-route.md).
+DEFAULT_MAX_DISPLACEMENT = 0.25
+#: route="auto" takes the relaxed route only from this many particles on: below it an LP
+#: costs little, and the loop's wandering phase takes seconds.
+AUTO_MIN_PARTICLES = 1024
+#: ... and only for an input that is not near a jamming point: one whose isostatic count
+#: of smallest gaps spreads over more than `AUTO_SPREAD_DECADES` decades (the contacts of a
+#: jamming point compressed to a pressure p all lie within a decade or so of d/p; a state
+#: compressed at a constant rate holds pairs at round-off gaps beside others at 1e-5), or
+#: which is hypostatic: fewer pairs than the isostatic count within `CANDIDATE_GAP`.
+AUTO_SPREAD_DECADES = 3.0
+#: The spread of `lp_route_slow` is between the smallest gap of this rank (a fraction of the
+#: isostatic count) and the gap of the isostatic count itself.
+SPREAD_FROM_RANK = 0.5
+
+
+def check_route(route: str, max_displacement: float | None, network) -> None:
+    """ValueError (one line) for an unknown route, a non-positive `max_displacement`, or a
+    network hint given with ``route="relaxed"`` (the relaxation makes its own network)."""
+    if route not in ROUTES:
+        raise ValueError(f"unknown route {route!r}: choose one of {', '.join(ROUTES)}")
+    if max_displacement is not None and not max_displacement > 0:
+        raise ValueError(f"max_displacement must be > 0 (mean diameters), got "
+                         f"{max_displacement!r}")
+    if route == "relaxed" and network is not None:
+        raise ValueError("route='relaxed' makes its own contact network: give no network, "
+                         "or take route='lp'")
+
+
+def lp_route_slow(packing: Packing) -> str | None:
+    """Why the LP route is predicted to be slow for `packing`, or None.
+
+    Predicted slow: at least `AUTO_MIN_PARTICLES` particles, and an input that is not near
+    a jamming point, read from its relative gaps h = |r|/σ − 1 of the pairs below
+    `CANDIDATE_GAP`: fewer of them than the isostatic count d (N − 1) + 1 (hypostatic), or
+    the smallest isostatic count of them spread over more than `AUTO_SPREAD_DECADES`
+    decades (from the gap of rank `SPREAD_FROM_RANK` × that count to the count's own).
+
+    Returns
+    -------
+    str or None
+        The reason in words (for the notes), or None.
+    """
+    n, d = packing.n, packing.d
+    if n < AUTO_MIN_PARTICLES:
+        return None
+    scale = packing.mean_diameter
+    search = NeighborSearch(packing.positions / scale, packing.diameters / scale,
+                            packing.box / scale,
+                            None if packing.boundaries.is_periodic else packing.periodic)
+    reach = float(search.diameters.max()) * (1.0 + CANDIDATE_GAP)
+    gaps = search.pairs_within(reach).gaps
+    gaps = np.sort(gaps[gaps < CANDIDATE_GAP])
+    count = d * (n - 1) + 1
+    if gaps.size < count:
+        return (f"N = {n} and the input is hypostatic: {gaps.size} pairs within "
+                f"{CANDIDATE_GAP:g} of contact, {count} needed")
+    low, high = np.maximum(gaps[[int(SPREAD_FROM_RANK * count) - 1, count - 1]], ROUNDOFF_GAP)
+    spread = float(np.log10(high / low))
+    if spread > AUTO_SPREAD_DECADES:
+        return (f"N = {n} and the input's smallest gaps spread over {spread:.1f} decades "
+                f"({low:.1e} to {high:.1e})")
+    return None
+
+
+def relaxed_checkpoint(checkpoint: str | os.PathLike | None) -> str | None:
+    """Where the relaxation of the relaxed route keeps its state, beside `jam`'s checkpoint
+    (``<name>.relax.npz``), or None."""
+    if checkpoint is None:
+        return None
+    path = os.fspath(checkpoint)
+    return (path[:-4] if path.endswith(".npz") else path) + ".relax.npz"
+
+
+def jam_by_route(packing: Packing, route: str, max_displacement: float | None, network,
+                 checkpoint: str | os.PathLike | None,
+                 loop: Callable[[Packing, object, object], JammingResult]) -> JammingResult:
+    """Jam `packing` by `route` and record how far the jamming point lies from it.
+
+    Parameters
+    ----------
+    packing : Packing
+        The checked input.
+    route : {"lp", "relaxed", "auto"}
+    max_displacement : float or None
+        Largest distance a particle may move from the input (mean diameters). None: no
+        bound on the LP route, `DEFAULT_MAX_DISPLACEMENT` on the relaxed one.
+    network : array_like or None
+        The caller's network hint (LP route only).
+    checkpoint : str or PathLike or None
+        `jam`'s checkpoint file; the relaxation keeps its own beside it.
+    loop : callable
+        ``loop(packing, network, checkpoint)``: the CALiPPSO loop (`calippso.ilp`).
+
+    Raises
+    ------
+    JammingError
+        One line, when a route moved a particle further than `max_displacement` (the
+        relaxed route before it runs the loop, when the relaxation did).
+    """
+    started = time.perf_counter()
+    check_route(route, max_displacement, network)
+    reason = lp_route_slow(packing) if route == "auto" and network is None else None
+    if route == "lp" or (route == "auto" and reason is None):
+        return _bounded(_recorded(loop(packing, network, checkpoint), packing, "lp"),
+                        max_displacement)
+    limit = DEFAULT_MAX_DISPLACEMENT if max_displacement is None else max_displacement
+    relaxation = _relax(packing, checkpoint)
+    moved = relaxation.extra["max_displacement"]
+    if moved > limit:
+        message = (f"the relaxed route moved a particle by {moved:.3g} mean diameters, more "
+                   f"than max_displacement = {limit:g}")
+        if route == "relaxed":
+            raise JammingError(f"{message}; raise max_displacement or take route='lp'",
+                               packing=packing)
+        result = _recorded(loop(packing, network, checkpoint), packing, "lp")
+        result.notes.append(f"route 'auto' predicted a slow LP route ({reason}) but {message}: "
+                            f"the LP route ran")
+        return _bounded(result, max_displacement)
+    hint = relaxation.contacts if packing.boundaries.is_periodic else None
+    result = _recorded(loop(relaxation.packing, hint, checkpoint), packing, "relaxed")
+    if reason is not None:
+        result.notes.append(f"route 'auto' took the relaxed route: {reason}")
+    words = _in_words(result, relaxation.extra, reason)
+    result = replace(result, status=f"{result.status} {words}",
+                     wall_time=time.perf_counter() - started)
+    return _bounded(result, limit)
+
+
+def _relax(packing: Packing, checkpoint: str | os.PathLike | None):
+    """`generators.relax` of the input (imported here: the generators load numba)."""
+    from generators import relax
+
+    return relax(packing, checkpoint=relaxed_checkpoint(checkpoint))
+
+
+def _recorded(result: JammingResult, packing: Packing, route: str) -> JammingResult:
+    """`result` with its route and its distance from the input `packing` recorded."""
+    lengths, _ = displacements(packing.positions, result.packing.positions, packing.box,
+                               packing.periodic)
+    scale = packing.mean_diameter
+    return replace(result, route=route, phi_input=packing.phi,
+                   displacement_max=float(lengths.max()) / scale,
+                   displacement_median=float(np.median(lengths)) / scale)
+
+
+def _bounded(result: JammingResult, max_displacement: float | None) -> JammingResult:
+    """`result`, or JammingError (one line) when it moved a particle further than
+    `max_displacement` (None: no bound)."""
+    if max_displacement is not None and result.displacement_max > max_displacement:
+        raise JammingError(f"the {result.route} route moved a particle by "
+                           f"{result.displacement_max:.3g} mean diameters, more than "
+                           f"max_displacement = {max_displacement:g}", packing=result.packing,
+                           history=result.history)
+    return result
+
+
+def _in_words(result: JammingResult, relaxed: dict, reason: str | None) -> str:
+    """The sentence the relaxed route adds to the status."""
+    chosen = "" if reason is None else " (chosen by route 'auto')"
+    return (f"Relaxed route{chosen}: the input was relaxed as soft spheres from pressure "
+            f"{relaxed['start_pressure']:.0e} to {relaxed['pressure']:.1e} before the loop; "
+            f"the jamming point lies at most {result.displacement_max:.1e} and a median "
+            f"{result.displacement_median:.1e} mean diameters from the input, phi "
+            f"{result.phi_change:+.1e}.")

@@ -1,0 +1,138 @@
+"""Relax a given configuration as soft spheres: the soft quench started from the caller's
+positions instead of random centres.
+
+A packing made by LS or FB at a constant rate, or an MD snapshot, lies near but not at a
+jamming point; the LP loop then slides it along collective channels for tens of LPs. Treated
+as harmonic spheres at its own positions and diameters, inflated to a small pressure and
+walked down the soft quench's pressure ladder, it settles into a nearby energy basin, whose
+overlap network at p → 0⁺ is the contact network of a nearby hard-sphere jamming point
+(O'Hern, Silbert, Liu & Nagel, PRE 68, 011306 (2003)).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from calippso.packing import Packing
+from calippso.periodic import displacements, wrap
+
+from ._checks import check_boundaries, check_positive, phi_estimate
+from .checkpoint import Checkpoint, digest
+from .result import GenerationResult
+from .soft_quench import (BOUNDARY_KINDS, PHI_START_FACTOR, TARGET_AIM, _check_box,
+                          _pressure_ladder, _Run, _SoftSpheres, check_quench_options,
+                          quench_and_shrink)
+
+__all__ = ["relax", "RELAX_START_PRESSURE"]
+
+#: Pressure of the first minimisation of `relax` (ε / (mean diameter)^d): the input is
+#: inflated to it. Lower than the quench's 1e-2 from random centres, since the input is
+#: already near a jamming point and every rung above it would move it further.
+RELAX_START_PRESSURE = 1e-4
+
+
+def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
+          target_pressure: float | None = None, force_tolerance: float = 1e-6,
+          progress: bool = False, skin: float = 0.2, max_steps: int = 50_000_000,
+          checkpoint: str | os.PathLike | None = None, checkpoint_every: float = 60.0,
+          minimiser: str = "auto") -> GenerationResult:
+    """Relax a configuration as harmonic soft spheres to a vanishing pressure, then shrink
+    it to hard contact, in its own box.
+
+    The particles keep their positions as the start and their diameters' ratios; the box
+    and the boundaries do not change. The diameters are inflated (one common factor, a
+    degree of freedom of the enthalpy H = E + p* V) to the pressure `start_pressure` and
+    the enthalpy is minimised; the pressure then goes down in factors of at most 10 to half
+    of `target_pressure`, and the last minimum is tightened and shrunk to hard contact
+    exactly as in `soft_quench` (same minimisers, same convergence tests, same shrink). The
+    common translation of the particles along the periodic axes is taken out at the end.
+
+    Parameters
+    ----------
+    packing : calippso.Packing
+        The configuration: positions, diameters, box and boundaries (periodic, flat walls or
+        a cylinder). It may overlap (soft spheres): the first minimisation removes the
+        overlaps above the start pressure.
+    start_pressure : float
+        Pressure of the first minimisation, ε / (mean diameter)^d (default 1e-4). A higher
+        one rearranges the packing more and moves it further from the input.
+    target_pressure : float, optional
+        The last minimum has half this pressure. Default: `default_target_pressure` (as
+        `soft_quench`).
+    force_tolerance, progress, skin, max_steps, checkpoint_every, minimiser
+        As in `soft_quench`.
+    checkpoint : str or PathLike, optional
+        File (``.npz``) of the run's state, written and resumed as in `soft_quench`; it
+        belongs to this input and these options.
+
+    Returns
+    -------
+    GenerationResult
+        As `soft_quench`'s, except that `packing` has the input's box and boundaries, the
+        particles in the input order, and the input's diameters times one factor (``extra
+        ["diameter_factor"]``). `contacts` is the overlap network before the shrink
+        (rattlers removed): ``calippso.jam(result.packing, network=result.contacts)``
+        certifies it. `extra` adds ``start_pressure``, ``phi_input`` (φ of the input),
+        ``max_displacement`` and ``median_displacement`` (of the particles from the input,
+        minimum image, common translation taken out, in mean diameters of the input) and
+        ``translation`` (the common translation taken out, shape (d,), length units).
+
+    Raises
+    ------
+    ValueError
+        On a packing that is not a `calippso.Packing`, non-positive pressures, tolerance or
+        skin, a start pressure below the target, a non-positive max_steps, too few
+        particles for the box, or a checkpoint file that belongs to another run.
+    """
+    wall = time.perf_counter()
+    if not isinstance(packing, Packing):
+        raise ValueError(f"relax takes a calippso.Packing, got {type(packing).__name__}")
+    n, d = packing.n, packing.d
+    boundaries = check_boundaries(packing.boundaries, d, "relax", BOUNDARY_KINDS)
+    target_pressure, force_tolerance, skin, minimiser = check_quench_options(
+        n, d, boundaries, target_pressure, force_tolerance, skin, max_steps, minimiser)
+    start_pressure = check_positive(start_pressure, "start_pressure")
+    if start_pressure < target_pressure:
+        raise ValueError(f"start_pressure {start_pressure:g} is below target_pressure "
+                         f"{target_pressure:g}")
+    signature = {"input": digest(packing.positions, packing.diameters, packing.box),
+                 "boundaries": str(boundaries), "start_pressure": start_pressure,
+                 "target_pressure": target_pressure, "force_tolerance": force_tolerance,
+                 "skin": skin, "minimiser": minimiser}
+    saver = Checkpoint(checkpoint, "relax", signature,
+                       every=check_positive(checkpoint_every, "checkpoint_every",
+                                            allow_zero=True))
+    mean = packing.mean_diameter
+    box = packing.box / mean
+    nominal = packing.diameters / mean
+    start = wrap(packing.positions, packing.box, boundaries.periodic) / mean
+    _check_box(box, nominal, skin, packing.phi,
+               max(packing.phi, PHI_START_FACTOR * phi_estimate(d)), boundaries.periodic)
+    system = _SoftSpheres(start, nominal, box, skin, minimiser, boundaries.periodic,
+                          boundaries.cylinder_axes)
+    run = _Run(_pressure_ladder(TARGET_AIM * target_pressure, start_pressure),
+               force_tolerance, max_steps)
+    result = quench_and_shrink(system, run, saver, packing.diameters, boundaries,
+                               target_pressure, progress, wall, box=packing.box)
+    return _aligned(result, packing, start_pressure)
+
+
+def _aligned(result: GenerationResult, packing: Packing,
+             start_pressure: float) -> GenerationResult:
+    """`result` with the common translation from `packing` taken out, and the distance
+    from it recorded in ``extra``."""
+    relaxed = result.packing
+    lengths, translation = displacements(packing.positions, relaxed.positions, packing.box,
+                                         packing.periodic)
+    result.packing = Packing(relaxed.positions - translation, relaxed.diameters, relaxed.box,
+                             relaxed.boundaries).wrapped()
+    mean = packing.mean_diameter
+    result.extra.update(start_pressure=start_pressure, phi_input=packing.phi,
+                        diameter_factor=float(relaxed.diameters.mean()) / mean,
+                        max_displacement=float(lengths.max()) / mean,
+                        median_displacement=float(np.median(lengths)) / mean,
+                        translation=translation)
+    return result
