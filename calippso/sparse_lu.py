@@ -25,6 +25,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
+from .c_stdout import c_stdout_to_stderr
+
 __all__ = ["Factors", "factorize", "pardiso_available", "PARDISO_MIN_UNKNOWNS"]
 
 #: PARDISO is used from this many unknowns on (when installed): from a d = 3, N = 1024
@@ -86,8 +88,9 @@ def factorize(matrix: sp.spmatrix, method: str = "auto", strict: bool = True) ->
     if use_pardiso:
         return _PardisoFactors.of(matrix, strict)
     try:
-        return splu(sp.csc_matrix(matrix), permc_spec="COLAMD")
-    except RuntimeError:  # exactly singular
+        with c_stdout_to_stderr():   # BLAS's complaints on a singular matrix (c_stdout)
+            return splu(sp.csc_matrix(matrix), permc_spec="COLAMD")
+    except RuntimeError:  # exactly or numerically singular
         return None
 
 

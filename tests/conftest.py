@@ -9,11 +9,22 @@ independently of the loop. Input makers live in `configurations.py` and `lattice
 from __future__ import annotations
 
 import hashlib
+import os
 import sys
 from pathlib import Path
 
-import numpy as np
-import pytest
+#: Each pytest-xdist worker computes on one thread: the workers share the cores, and two
+#: workers whose Numba, BLAS and MKL threads compete for 2 cores spin-wait each other's
+#: parallel regions (a soft-quench test module took 7 s alone and 290 s beside another).
+#: Set before numpy loads its BLAS; Numba's threads in `pytest_configure`. The threaded
+#: kernels are still compared against one thread in test_generators_soft_quench.py.
+WORKER_THREADS = 1
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_variable, str(WORKER_THREADS))
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # configurations.py, lattices.py
 
@@ -30,6 +41,14 @@ BALANCE_TOLERANCE = 1e-12
 CONTACT_GAP_TOLERANCE = 1e-9
 #: Σ λ_ij σ_ij² = 1 (the LP's dual normalisation) to this absolute tolerance.
 NORMALIZATION_TOLERANCE = 1e-10
+
+
+def pytest_configure(config) -> None:
+    """In a pytest-xdist worker, Numba's parallel loops run on `WORKER_THREADS` threads."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        import numba
+
+        numba.set_num_threads(WORKER_THREADS)
 
 
 @pytest.fixture

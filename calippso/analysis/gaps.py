@@ -8,6 +8,7 @@ import numpy as np
 
 from ..neighbors import NeighborSearch
 from ..result import JammingResult
+from ..touching import TOUCHING_GAP
 from ._inputs import as_results
 from .sample import PooledSample
 
@@ -15,9 +16,9 @@ __all__ = ["DEFAULT_MAX_GAP", "TOUCHING", "gaps", "pooled_gaps"]
 
 #: Largest gap h kept by default (pairs with |r_ij| ≤ 1.1 σ_ij).
 DEFAULT_MAX_GAP = 0.1
-#: Pairs with h below this touch to round-off: a touching pair without force (a degenerate
-#: contact, met in partly ordered packings) is neither a contact nor a gap, and is left out.
-TOUCHING = 1e-10
+#: Pairs with h at most this touch to round-off: a touching pair outside the network (zero
+#: force, `JammingResult.touching`) is neither a contact nor a gap, and is left out.
+TOUCHING = TOUCHING_GAP
 
 
 def gaps(result: JammingResult, max_gap: float = DEFAULT_MAX_GAP) -> np.ndarray:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..result import JammingResult
+from ..touching import TOUCHING_GAP
 from .forces import bucklers
 
 __all__ = ["RUN_RECORD_KEYS", "run_record"]
@@ -24,6 +25,9 @@ RUN_RECORD_KEYS = {
     "isostaticity_gap": "N_c - d (N_s - 1) - 1 (0 when isostatic)",
     "n_contacts": "number of contacts N_c between stable particles",
     "n_stable": "number of stable (non-rattler) particles N_s",
+    "n_touching": (f"pairs that touch (relative gap <= {TOUCHING_GAP:g}) outside the contact "
+                   "network, stable pairs and particle-wall pairs: zero force, not in "
+                   "n_contacts"),
     "rattler_fraction": "fraction of particles that are rattlers",
     "n_bucklers": "stable particles with exactly d + 1 contacts",
     "force_balance": "max over stable particles of |net force| / mean force",
@@ -57,6 +61,7 @@ def run_record(result: JammingResult) -> dict:
         "isostaticity_gap": int(result.isostaticity_gap),
         "n_contacts": int(result.n_contacts),
         "n_stable": int(result.n_stable),
+        "n_touching": len(result.touching),
         "rattler_fraction": float(result.rattler_fraction),
         "n_bucklers": int(np.count_nonzero(bucklers(result))),
         "force_balance": float(result.force_balance),

@@ -114,6 +114,8 @@ def _factorised(matrix, dense: bool):
     from scipy.linalg.lapack import dgecon
     from scipy.sparse.linalg import splu
 
+    from ..c_stdout import c_stdout_to_stderr
+
     if dense:
         array = matrix.toarray()
         one_norm = float(np.abs(array).sum(axis=0).max())
@@ -124,7 +126,8 @@ def _factorised(matrix, dense: bool):
             raise ValueError(f"{_FLOPPY}; reciprocal condition number {rcond:.1e}")
         return (lambda block: lu_solve(factor, block, check_finite=False)), float(rcond)
     try:
-        factor = splu(matrix)
+        with c_stdout_to_stderr():   # BLAS's complaints on a singular matrix
+            factor = splu(matrix)
     except RuntimeError:  # "Factor is exactly singular"
         raise ValueError(_FLOPPY) from None
     return factor.solve, float("nan")

@@ -35,6 +35,11 @@ class ContactStatistics:
         N_c − d (N_s − 1) − 1 of each packing.
     phi : ndarray, shape (n_packings,)
         Packing fraction of each packing.
+    n_touching : int
+        Pairs that touch outside the contact networks, over the packings: stable pairs and
+        particle–wall pairs with zero force (`JammingResult.touching`). Not in
+        `n_contacts`, `mean_z` or the contact numbers; counted as contacts they would raise
+        each packing's isostaticity gap by their number.
     """
 
     d: int
@@ -47,6 +52,7 @@ class ContactStatistics:
     contact_numbers: np.ndarray
     isostaticity_gaps: np.ndarray
     phi: np.ndarray
+    n_touching: int = 0
 
     @property
     def n_isostatic(self) -> int:
@@ -88,4 +94,5 @@ def contact_statistics(results: JammingResult | Iterable[JammingResult]) -> Cont
         contact_numbers=np.concatenate(z).astype(np.int64),
         isostaticity_gaps=np.array([r.isostaticity_gap for r in items], dtype=np.int64),
         phi=np.array([r.phi for r in items], dtype=np.float64),
+        n_touching=sum(len(r.touching) for r in items),
     )

@@ -84,6 +84,7 @@ class Analysis:
             "rattler_fraction": c.rattler_fraction,
             "stable_particles": c.n_stable,
             "contacts": c.n_contacts,
+            "touching_outside_network": c.n_touching,
             "isostatic_packings": c.n_isostatic,
             "isostaticity_gaps": c.isostaticity_gaps.tolist(),
             "bucklers": self.n_bucklers,

@@ -52,6 +52,8 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
         f"| mean z over stable particles | {summary['mean_z_stable']:.5f} |",
         f"| rattler fraction | {100 * summary['rattler_fraction']:.3f} % |",
         f"| isostatic packings | {summary['isostatic_packings']} / {summary['packings']} |",
+        f"| pairs touching outside the networks (zero force, not counted as contacts) | "
+        f"{summary['touching_outside_network']} |",
         f"| bucklers (d + 1 contacts) | {summary['bucklers']} "
         f"({100 * summary['buckler_fraction']:.2f} % of stable) |",
         f"| localised / extended forces (particle–particle) | {summary['localized_forces']} / "
