@@ -49,6 +49,8 @@ HISTORY_COLUMNS: dict[str, tuple[object, str]] = {
     "min_gap": (np.float64, "smallest h_ij = |r_ij|/σ_ij − 1 after the update"),
     "phi": (np.float64, "packing fraction after the update"),
     "pivots": (np.int64, "contact pivots taken in this stage (0 but in a 'pivots' record)"),
+    "ipm_iterations": (np.int64, "interior-point iterations of this LP (0 for a warm-started "
+                                 "simplex, and for the stages that solve no LP)"),
 }
 
 #: The structured dtype of `JammingResult.history` (fields `HISTORY_COLUMNS`).
@@ -106,6 +108,7 @@ class Record:
     min_gap: float
     phi: float
     pivots: int = 0
+    ipm_iterations: int = 0
 
     def as_dict(self) -> dict:
         """The record as a dict (what ``jam(..., callback=...)`` receives, with more keys)."""
@@ -143,7 +146,8 @@ class History:
 
     def add_lp(self, *, stage: str, solver_time: float, gamma: float, max_displacement: float,
                rows: int, step_bound: float, n_contacts: int, n_stable: int,
-               force_balance: float, min_gap: float, phi: float) -> Record:
+               force_balance: float, min_gap: float, phi: float,
+               ipm_iterations: int = 0) -> Record:
         """The record of an LP ("lp" or "cleanup"); `gamma` is the LP's Γ* − 1."""
         return self._add(Record(
             stage=stage, wall_time=self.elapsed(), solver_time=solver_time,
@@ -151,7 +155,8 @@ class History:
             max_displacement=max_displacement, rows=rows, step_bound=step_bound,
             n_contacts=n_contacts,
             isostaticity_gap=isostaticity_gap(n_contacts, n_stable, self.d, self.zero_modes),
-            force_balance=force_balance, min_gap=min_gap, phi=phi))
+            force_balance=force_balance, min_gap=min_gap, phi=phi,
+            ipm_iterations=ipm_iterations))
 
     def add_newton(self, *, seconds: float, sqrt_gamma_minus_1: float,
                    max_displacement: float, n_contacts: int, n_stable: int,

@@ -17,6 +17,9 @@ PIVOT_MODES = ("network_first", "always", "off")
 #: Names accepted by ``jam(..., interior_point=...)`` (HiGHS backend).
 INTERIOR_POINT_SOLVERS = ("auto", "ipx", "hipo")
 
+#: Values accepted by ``jam(..., crossover=...)``.
+CROSSOVER_MODES = ("on", "off")
+
 #: Options `jam` no longer takes, and what replaces each (`JamSettings.from_options` raises
 #: TypeError with this text).
 REMOVED_OPTIONS = {
@@ -98,7 +101,15 @@ class JamSettings:
         the `hipo` extra, `pip install "calippso[hipo]"`), or "auto" (default): HiPO for LPs
         of `solvers.highs.HIPO_MIN_COLUMNS` columns or more (d N + 1) when it is installed,
         IPX otherwise.
-        All end with a crossover to a vertex.
+        All end with a crossover to a vertex, unless ``crossover="off"``.
+    crossover : str
+        "on" (default): every HiGHS LP ends at a vertex, whose duals name the contacts.
+        "off": every LP is solved from scratch by interior point without crossover (the
+        one ``interior_point`` names, at `solvers.highs.INTERIOR_OPTIMALITY_TOLERANCE`), its
+        network read by strict complementarity (`calippso.complementarity`), rattlers
+        removed, and the Newton stage, the contact pivots and the certificate run after
+        every LP. The LP steps are then centres of the optimal face: rattlers and floppy
+        directions end mid-range rather than at the bound.
     pin : bool
         Fix one particle's displacement to remove the d translational zero modes.
     verbose : bool
@@ -127,6 +138,7 @@ class JamSettings:
     verify_newton: bool = False
     warm_start: bool = True
     interior_point: str = "auto"
+    crossover: str = "on"
     pin: bool = True
     verbose: bool = False
 
@@ -144,6 +156,9 @@ class JamSettings:
         if self.interior_point not in INTERIOR_POINT_SOLVERS:
             raise ValueError(f"unknown interior_point {self.interior_point!r}: choose one of "
                              f"{', '.join(INTERIOR_POINT_SOLVERS)}")
+        if self.crossover not in CROSSOVER_MODES:
+            raise ValueError(f"unknown crossover {self.crossover!r}: choose one of "
+                             f"{', '.join(CROSSOVER_MODES)}")
         for name in ("tol_gamma", "tol_s", "max_step", "min_step", "feasibility_tolerance",
                      "contact_threshold", "interior_contact_threshold", "balance_tolerance",
                      "newton_start"):

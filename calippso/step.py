@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .complementarity import read_complementarity
 from .contacts import contact_mask, force_balance, isostaticity_gap
 from .lp import LinearProgram
 from .network import ContactNetwork
@@ -126,8 +127,13 @@ class Step:
 
 def analyse(lp: LinearProgram, solution: LPSolution, settings: JamSettings,
             stable: np.ndarray | None = None, offered_warm_start: bool = False) -> Step:
-    """Read an LP's answer: contacts (duals above the contact threshold), rattlers, forces and
-    their balance, the largest displacements.
+    """Read an LP's answer: contacts, rattlers, forces and their balance, the largest
+    displacements.
+
+    The contacts of a vertex are the rows whose duals exceed `contact_threshold` × the
+    largest; those of an interior solution, with ``crossover="off"``, the rows that strict
+    complementarity reads as contacts (`calippso.complementarity`); of any other interior
+    solution, the duals above `interior_contact_threshold` × the largest.
 
     Parameters
     ----------
@@ -147,9 +153,12 @@ def analyse(lp: LinearProgram, solution: LPSolution, settings: JamSettings,
     Step
     """
     n, d = lp.n, lp.d
-    threshold = (settings.contact_threshold if solution.vertex
-                 else settings.interior_contact_threshold)
-    every = np.flatnonzero(contact_mask(solution.duals, threshold))
+    if not solution.vertex and settings.crossover == "off":
+        every = np.flatnonzero(read_complementarity(lp, solution).contacts)
+    else:
+        threshold = (settings.contact_threshold if solution.vertex
+                     else settings.interior_contact_threshold)
+        every = np.flatnonzero(contact_mask(solution.duals, threshold))
     pairs, m = lp.pairs, len(lp.pairs)
     rows, wall_rows = every[every < m], every[every >= m] - m
     wall_particle = lp.walls.particle[wall_rows]

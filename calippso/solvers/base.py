@@ -51,6 +51,9 @@ class LPSolution:
         The optimal basis, for a warm start of the next LP (HiGHS only).
     warm_started : bool
         The solution was found from the previous LP's basis.
+    ipm_iterations : int
+        Interior-point iterations the backend took (0 when it reports none, or when a
+        warm-started simplex solved the LP).
     """
 
     x: np.ndarray
@@ -62,6 +65,7 @@ class LPSolution:
     solver: str
     basis: Basis | None = None
     warm_started: bool = False
+    ipm_iterations: int = 0
 
     @property
     def gamma(self) -> float:

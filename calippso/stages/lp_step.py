@@ -67,10 +67,12 @@ class LPStep:
 
     def newton_due(self, settings: JamSettings) -> bool:
         """Whether the Newton stage tries this LP's network: isostatic, with contacts, and
-        a largest displacement below `newton_start`."""
+        a largest displacement below `newton_start` (after every LP with
+        ``crossover="off"``, whose network is read by complementarity)."""
         return bool(settings.newton and self.record.isostaticity_gap == 0
                     and self.record.n_contacts
-                    and self.taken.max_displacement < settings.newton_start)
+                    and (self.taken.max_displacement < settings.newton_start
+                         or settings.crossover == "off"))
 
 
 def lp_step(run: Run, state: LoopState) -> tuple[LoopState, LPStep]:
@@ -191,7 +193,8 @@ def record_lp(run: Run, state: LoopState, taken: Step, min_gap: float,
         gamma=taken.solution.gamma, max_displacement=taken.max_displacement,
         rows=taken.lp.n_rows, step_bound=taken.lp.step_bound, n_contacts=taken.n_contacts,
         n_stable=int(run.n - taken.rattlers.sum()), force_balance=taken.balance,
-        min_gap=min_gap, phi=run.packing(state).phi)
+        min_gap=min_gap, phi=run.packing(state).phi,
+        ipm_iterations=taken.solution.ipm_iterations)
 
 
 def _pairs(run: Run, search: NeighborSearch, step: float, stable: np.ndarray | None,

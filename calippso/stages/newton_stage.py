@@ -15,14 +15,19 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..network import ContactNetwork, certify_network
-from ..newton import NEWTON_FAILED, Refinement, refine_isostatic
+from ..newton import MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, refine_isostatic
 from ..pivots import PivotPath, describe_path, pivot_to_jamming
 from .state import LoopState, Run
 
-__all__ = ["NewtonOutcome", "newton", "newton_or_pivots", "record_pivots", "TRIED_BEFORE"]
+__all__ = ["NewtonOutcome", "newton", "newton_or_pivots", "record_pivots", "TRIED_BEFORE",
+           "INTERIOR_PIVOTS"]
 
 #: Why a network that the Newton stage refused once is not tried again.
 TRIED_BEFORE = "tried before"
+#: With ``crossover="off"`` the Newton stage runs after every LP: contact pivots repair its
+#: network only when at most this many forces come out non-positive, and take at most this
+#: many pivots (a network further off is left to the next LP, which sees all of it at once).
+INTERIOR_PIVOTS = 40
 
 
 @dataclass(frozen=True)
@@ -101,9 +106,13 @@ def newton(run: Run, state: LoopState, network: ContactNetwork, *, retry: bool =
 
 def newton_or_pivots(run: Run, state: LoopState,
                      network: ContactNetwork) -> tuple[LoopState, NewtonOutcome]:
-    """The Newton stage for an LP's isostatic network; with ``pivots="always"``, contact
-    pivots from its jamming point when only non-positive forces refuse it."""
-    if run.settings.pivots != "always" or network.key() in state.failed_networks:
+    """The Newton stage for an LP's isostatic network; with ``pivots="always"``, or with
+    ``crossover="off"`` unless ``pivots="off"``, contact pivots from its jamming point when
+    only non-positive forces refuse it."""
+    settings = run.settings
+    pivots = settings.pivots == "always" or (settings.crossover == "off"
+                                             and settings.pivots != "off")
+    if not pivots or network.key() in state.failed_networks:
         return newton(run, state, network)
     refinement = refine_isostatic(state.positions, state.diameters, run.box, network.i,
                                   network.j, ~network.rattlers)
@@ -112,8 +121,14 @@ def newton_or_pivots(run: Run, state: LoopState,
     state, outcome = newton(run, state, network, refined=refinement)
     if outcome.network is not None or refinement.positive:
         return state, outcome
+    budget = {}
+    if settings.crossover == "off":
+        forces = refinement.forces
+        if np.count_nonzero(forces <= MIN_FORCE_RATIO * forces.max()) > INTERIOR_PIVOTS:
+            return state, outcome
+        budget = {"max_pivots": INTERIOR_PIVOTS}
     path, _ = pivot_to_jamming(state.positions, state.diameters, run.box, network.i,
-                               network.j, network.rattlers, refined=refinement)
+                               network.j, network.rattlers, refined=refinement, **budget)
     if path is None or not path.jammed:
         return state, outcome
     record_pivots(run, path)

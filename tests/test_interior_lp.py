@@ -1,0 +1,142 @@
+"""LPs solved by interior point without crossover (``jam(..., crossover="off")``): the
+network read by strict complementarity (`calippso.complementarity`), rattlers removed, and
+the Newton stage, the contact pivots and the certificate after every LP."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import generators
+from calippso import StopReason, jam
+from calippso.complementarity import read_complementarity
+from calippso.lp import build_lp, select_pairs
+from calippso.neighbors import NeighborSearch, Pairs
+from calippso.settings import JamSettings
+from calippso.solvers import LPSolution
+from calippso.solvers.highs import HighsOptions, solve
+from calippso.step import analyse
+
+from configurations import bidisperse, ls_packing
+from conftest import assert_jammed
+from test_cylinder import assert_jammed_in_a_cylinder, cylinder_start
+from test_walls import assert_jammed_between_walls, walled_start
+
+#: φ_J of the two engines where the LP path converges in a few LPs.
+SAME_PHI = 1e-9
+
+
+def interior(packing, **options):
+    """`jam` with the LPs solved without crossover and the LP loop from the start."""
+    return jam(packing, crossover="off", network_first="off", **options)
+
+
+def test_crossover_is_a_checked_setting():
+    assert JamSettings().crossover == "on"
+    with pytest.raises(ValueError, match=r"^unknown crossover 'maybe': choose one of on, off"):
+        JamSettings(crossover="maybe")
+    assert HighsOptions.from_settings(JamSettings(crossover="off")).crossover is False
+
+
+@pytest.mark.parametrize("d, n, seed", [
+    (3, 64, 1), (3, 128, 2),
+    pytest.param(5, 128, 1, marks=pytest.mark.slow)])   # making the d = 5 input takes ~10 s
+def test_ls_inputs_end_certified(d, n, seed):
+    result = interior(ls_packing(n, d, seed=seed, pressure=1e7))
+    assert_jammed(result)
+    assert result.stop_reason in (StopReason.CERTIFIED_NEWTON, StopReason.CERTIFIED_PIVOTS)
+    lps = result.history[result.history["stage"] == "lp"]
+    assert np.all(lps["ipm_iterations"] > 0)   # every LP by interior point, recorded
+
+
+def test_d2_bidisperse_matches_the_vertex_engine():
+    start = generators.lubachevsky_stillinger(bidisperse(128), d=2, target_pressure=1e7,
+                                              seed=2).packing
+    result = interior(start)
+    assert_jammed(result)
+    vertex = jam(start, network_first="off")
+    assert result.phi == pytest.approx(vertex.phi, rel=SAME_PHI)
+
+
+def test_nearly_jammed_input_reaches_the_same_phi(nearly_jammed):
+    result = interior(nearly_jammed)
+    assert_jammed(result)
+    vertex = jam(nearly_jammed, network_first="off")
+    assert result.phi == pytest.approx(vertex.phi, rel=SAME_PHI)
+    assert result.n_contacts == vertex.n_contacts
+    assert np.array_equal(result.rattlers, vertex.rattlers)
+
+
+def test_a_rattler_is_left_mid_range_and_out_of_the_network():
+    """The optimal face is degenerate (a rattler moves freely inside its cage): the
+    interior solution leaves the rattler strictly inside the bound, and complementarity
+    reads the same contacts as the vertex."""
+    start = ls_packing(128, 3, seed=2, pressure=1e7)
+    scale = start.mean_diameter
+    search = NeighborSearch(start.positions / scale, start.diameters / scale, start.box / scale)
+    bound = 1e-3
+    fixed = np.zeros((start.n, 3), dtype=bool)
+    fixed[-1] = True
+    lp = build_lp(select_pairs(search, bound), start.n, 3, bound, fixed)
+    vertex = solve(lp, HighsOptions())
+    centre = solve(lp, HighsOptions(crossover=False))
+    assert vertex.vertex and not centre.vertex and centre.ipm_iterations > 0
+    reading = read_complementarity(lp, centre)
+    assert np.array_equal(reading.contacts, vertex.duals > 1e-10 * vertex.duals.max())
+    assert reading.margin > 1.0   # every row read apart by more than a decade
+    touching = np.zeros(start.n, dtype=bool)
+    touching[lp.pairs.i[reading.contacts]] = touching[lp.pairs.j[reading.contacts]] = True
+    free = np.flatnonzero(~touching)
+    assert free.size   # particles that no row holds: free inside their cages
+    s = np.abs(centre.x[:-1].reshape(start.n, 3))
+    assert s[free].max() < (1 - 1e-3) * bound
+    assert np.abs(vertex.x[:-1].reshape(start.n, 3)[free]).max() == pytest.approx(bound)
+    taken = analyse(lp, centre, JamSettings(crossover="off"))
+    assert taken.rattlers[free].all()
+    assert_jammed(interior(start))
+
+
+def _one_row_lp(duals, slacks, bound=1e-2):
+    """An LP of one particle pair per row whose solution has the given duals and slacks
+    (the matrix is the identity on γ; only the rows and the bound matter here)."""
+    m = len(duals)
+    pairs = Pairs(np.zeros(m, np.int64), np.ones(m, np.int64), np.ones((m, 1)),
+                  np.full(m, 2.0), np.full(m, 2.0))   # σ²/(2|r|) = 1 for every row
+    lp = build_lp(pairs, 2, 1, bound, np.zeros((2, 1), bool))
+    x = np.zeros(lp.n_cols)
+    lower = -(lp.matrix @ x) + np.asarray(slacks, float)
+    lp = type(lp)(sp.csc_matrix(lp.matrix), -lower + 0.0, lp.col_lower, lp.col_upper,
+                  lp.pairs, lp.n, lp.d, lp.step_bound, lp.walls, lp.zero_modes)
+    solution = LPSolution(x=x, duals=np.asarray(duals, float), optimal=True, status="Optimal",
+                          seconds=0.0, vertex=False, solver="test")
+    return lp, solution
+
+
+def test_ties_in_complementarity_are_decided_by_the_rule():
+    """μ̄ = Σ c μ² / Σ c μ = 0.5 here; the bound is 1e-2. A row exactly at q = 0
+    (μ b = s μ̄), a row with no dual and no slack, and a row with a dual and a slack below
+    zero; twice, in reversed order, with the same answer."""
+    duals = [0.5, 0.5, 0.0, 1e-20, 0.0]
+    slacks = [1e-2, 0.0, 0.0, -1e-15, 1e-3]
+    lp, solution = _one_row_lp(duals, slacks)
+    reading = read_complementarity(lp, solution)
+    assert reading.dual_scale == pytest.approx(0.5)
+    assert reading.contacts.tolist() == [False, True, False, True, False]
+    assert reading.score[0] == 0.0 and reading.score[2] == -np.inf
+    assert reading.score[3] == np.inf
+    reverse = read_complementarity(*_one_row_lp(duals[::-1], slacks[::-1]))
+    assert reverse.contacts.tolist() == reading.contacts.tolist()[::-1]
+
+
+def test_between_flat_walls():
+    result = jam(walled_start(64, 3, [0], polydisperse=True), crossover="off")
+    assert_jammed_between_walls(result)
+    assert result.stop_reason is StopReason.CERTIFIED_NEWTON
+
+
+def test_in_a_cylinder():
+    start = cylinder_start(96, 2, 1, True)
+    result = jam(start, crossover="off")
+    assert result.converged, result.status
+    assert_jammed_in_a_cylinder(result)
