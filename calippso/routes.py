@@ -13,8 +13,9 @@ relaxed as soft spheres.
   (`lp_route_slow`), the LP route elsewhere.
 
 Every route records on the result how far its jamming point lies from the input. This
-module imports the generators (and numba) only when the relaxed route runs, and never the
-loop itself: `calippso.ilp.jam` hands it the loop as a function.
+module imports the generators (and numba) only when the relaxed route runs, the pair search
+only when `gap_spread` runs, and never the loop itself: `calippso.ilp.jam` hands it the loop
+as a function.
 """
 
 from __future__ import annotations
@@ -27,14 +28,12 @@ from typing import Callable
 import numpy as np
 
 from .errors import JammingError
-from .neighbors import NeighborSearch
-from .network_guess import CANDIDATE_GAP, ROUNDOFF_GAP
 from .packing import Packing
 from .periodic import displacements
 from .result import JammingResult
 
 __all__ = ["ROUTES", "DEFAULT_MAX_DISPLACEMENT", "AUTO_MIN_PARTICLES", "check_route",
-           "lp_route_slow", "jam_by_route", "relaxed_checkpoint"]
+           "gap_spread", "lp_route_slow", "jam_by_route", "relaxed_checkpoint"]
 
 #: Values of ``jam(..., route=...)``.
 ROUTES = ("lp", "relaxed", "auto")
@@ -45,14 +44,15 @@ DEFAULT_MAX_DISPLACEMENT = 0.25
 #: route="auto" takes the relaxed route only from this many particles on: below it an LP
 #: costs little, and the loop's wandering phase takes seconds.
 AUTO_MIN_PARTICLES = 1024
-#: ... and only for an input that is not near a jamming point: one whose isostatic count
-#: of smallest gaps spreads over more than `AUTO_SPREAD_DECADES` decades (the contacts of a
-#: jamming point compressed to a pressure p all lie within a decade or so of d/p; a state
-#: compressed at a constant rate holds pairs at round-off gaps beside others at 1e-5), or
-#: which is hypostatic: fewer pairs than the isostatic count within `CANDIDATE_GAP`.
-AUTO_SPREAD_DECADES = 3.0
-#: The spread of `lp_route_slow` is between the smallest gap of this rank (a fraction of the
-#: isostatic count) and the gap of the isostatic count itself.
+#: ... and only for an input that is not near a jamming point (`gap_spread`): one whose
+#: closest pairs hold no rigid network (hypostatic: LS and FB → LS at a constant rate to
+#: p = 1e12, the shared PackingGeneration and Skoge–Donev files), or whose gaps up to the
+#: first rigid network spread over more than this many decades (N = 512, d = 3, seeds 1, 2:
+#: LS at a constant rate 1.85–1.96 at p = 1e5 and 3.7–4.0 at 1e7; with a slow end, 1.4–1.6
+#: at 1e5 and 2.2 at 1e7; jammed packings 0.1–0.2).
+AUTO_SPREAD_DECADES = 1.7
+#: The spread of `gap_spread` is between the gap of this rank (a fraction of the first rigid
+#: network's count) and the largest gap of that network.
 SPREAD_FROM_RANK = 0.5
 
 
@@ -69,39 +69,70 @@ def check_route(route: str, max_displacement: float | None, network) -> None:
                          "or take route='lp'")
 
 
+def gap_spread(packing: Packing) -> tuple[int, float]:
+    """How near a jamming point `packing` looks from its relative gaps h = |r|/σ − 1 of the
+    particle pairs within `calippso.network_guess.CANDIDATE_GAP` of contact.
+
+    Returns
+    -------
+    count : int
+        The fewest closest pairs whose network, rattlers removed recursively, is not
+        hypostatic (`calippso.network_guess.fewest_not_hypostatic`); 0 when even all of them
+        are.
+    spread : float
+        Decades between the gap of rank `SPREAD_FROM_RANK` × `count` and the gap of rank
+        `count` (gaps below round-off count as round-off); inf when `count` is 0.
+    """
+    from .contacts import isostaticity_gap, remove_rattlers
+    from .neighbors import NeighborSearch
+    from .network_guess import CANDIDATE_GAP, ROUNDOFF_GAP, fewest_not_hypostatic
+
+    n, d = packing.n, packing.d
+    scale = packing.mean_diameter
+    search = NeighborSearch(packing.positions / scale, packing.diameters / scale,
+                            packing.box / scale,
+                            None if packing.boundaries.is_periodic else packing.periodic)
+    pairs = search.pairs_within(float(search.diameters.max()) * (1.0 + CANDIDATE_GAP))
+    gaps = pairs.gaps
+    near = np.flatnonzero(gaps < CANDIDATE_GAP)
+    near = near[np.argsort(gaps[near], kind="stable")]
+    i, j, gaps = pairs.i[near], pairs.j[near], np.maximum(gaps[near], ROUNDOFF_GAP)
+
+    def excess(count: int) -> int:
+        rattlers, kept = remove_rattlers(n, d, i[:count], j[:count])
+        stable = int(n - rattlers.sum())
+        return isostaticity_gap(int(kept.sum()), stable, d) if stable else -1
+
+    count = fewest_not_hypostatic(near.size, excess)
+    if count == 0:
+        return 0, float("inf")
+    low = gaps[max(int(SPREAD_FROM_RANK * count), 1) - 1]
+    return count, float(np.log10(gaps[count - 1] / low))
+
+
 def lp_route_slow(packing: Packing) -> str | None:
     """Why the LP route is predicted to be slow for `packing`, or None.
 
     Predicted slow: at least `AUTO_MIN_PARTICLES` particles, and an input that is not near
-    a jamming point, read from its relative gaps h = |r|/σ − 1 of the pairs below
-    `CANDIDATE_GAP`: fewer of them than the isostatic count d (N − 1) + 1 (hypostatic), or
-    the smallest isostatic count of them spread over more than `AUTO_SPREAD_DECADES`
-    decades (from the gap of rank `SPREAD_FROM_RANK` × that count to the count's own).
+    a jamming point (`gap_spread`): fewer pairs near contact than the isostatic count
+    d (N − 1) + 1 (hypostatic), or the smallest isostatic count of gaps spread over more
+    than `AUTO_SPREAD_DECADES` decades.
 
     Returns
     -------
     str or None
         The reason in words (for the notes), or None.
     """
-    n, d = packing.n, packing.d
+    n = packing.n
     if n < AUTO_MIN_PARTICLES:
         return None
-    scale = packing.mean_diameter
-    search = NeighborSearch(packing.positions / scale, packing.diameters / scale,
-                            packing.box / scale,
-                            None if packing.boundaries.is_periodic else packing.periodic)
-    reach = float(search.diameters.max()) * (1.0 + CANDIDATE_GAP)
-    gaps = search.pairs_within(reach).gaps
-    gaps = np.sort(gaps[gaps < CANDIDATE_GAP])
-    count = d * (n - 1) + 1
-    if gaps.size < count:
-        return (f"N = {n} and the input is hypostatic: {gaps.size} pairs within "
-                f"{CANDIDATE_GAP:g} of contact, {count} needed")
-    low, high = np.maximum(gaps[[int(SPREAD_FROM_RANK * count) - 1, count - 1]], ROUNDOFF_GAP)
-    spread = float(np.log10(high / low))
+    count, spread = gap_spread(packing)
+    if count == 0:
+        return (f"N = {n} and the input is hypostatic: its pairs near contact hold no rigid "
+                f"network")
     if spread > AUTO_SPREAD_DECADES:
-        return (f"N = {n} and the input's smallest gaps spread over {spread:.1f} decades "
-                f"({low:.1e} to {high:.1e})")
+        return (f"N = {n} and the input's {count} smallest gaps spread over {spread:.1f} "
+                f"decades")
     return None
 
 

@@ -148,3 +148,25 @@ def test_between_walls_and_in_a_cylinder():
         check(result)
         assert_same_container(result, start)
         assert_distance_recorded(result, start, "relaxed")
+
+
+def test_the_cli_takes_a_route(spheres, tmp_path):
+    from calippso.cli import main
+
+    source, output = tmp_path / "ls.npz", tmp_path / "jammed.npz"
+    calippso.write(spheres, source)
+    assert main(["jam", str(source), "-o", str(output), "--route", "relaxed",
+                 "--max-displacement", "0.1"]) == 0
+    result = calippso.load_result(output)
+    assert result.route == "relaxed" and result.converged
+    assert result.displacement_max < 0.1
+
+
+def test_auto_predicts_a_slow_lp_route_from_the_gaps():
+    """From N = 1024 on: a crystal at contact has all its gaps at round-off (LP route); the
+    same crystal with gaps holds no rigid network near contact (relaxed route)."""
+    from lattices import fcc
+
+    assert fcc(7).n >= 1024                   # 4 × 7³ = 1372 spheres
+    assert lp_route_slow(fcc(7)) is None
+    assert "hypostatic" in lp_route_slow(fcc(7, fill=0.99))

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from ..routes import ROUTES
 from ..settings import INTERIOR_POINT_SOLVERS, NETWORK_FIRST_MODES, PIVOT_MODES
 from .common import (checkpoint_option, container_options, naming, output_options,
                      output_path, positive, solver_option, with_container)
@@ -43,6 +44,10 @@ def jam_record(result, source, output: Path | None) -> dict:
         **run_record(result),
         "boundaries": str(result.packing.boundaries),
         "n_wall_contacts": result.n_wall_contacts,
+        "route": result.route,
+        "displacement_max": result.displacement_max,
+        "displacement_median": result.displacement_median,
+        "phi_change": result.phi_change,
         "output": None if output is None else str(output),
     }
 
@@ -113,11 +118,28 @@ def jam_record(result, source, output: Path | None) -> dict:
     help="An .npz file whose 'contacts' array (M, 2) is tried first as the contact network "
     "(a jammed result, or a start that carries its network).",
 )
+@click.option(
+    "--route",
+    type=click.Choice(ROUTES),
+    default="lp",
+    show_default=True,
+    help="lp: the LP loop from the input; relaxed: relax the input as soft spheres first, "
+    "then certify its network (a nearby jamming point, fast for inputs compressed at a "
+    "constant rate); auto: relaxed where the LP route is predicted slow.",
+)
+@click.option(
+    "--max-displacement",
+    type=positive(float),
+    default=None,
+    help="Refuse a route that moves any particle further than this from the input (mean "
+    "diameters); default 0.25 on the relaxed route, no bound on the LP route.",
+)
 @checkpoint_option
 @container_options
 @output_options
 def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
-        precompress_pressure, network_first, pivots, network_path, checkpoint, container, out):
+        precompress_pressure, network_first, pivots, network_path, route, max_displacement,
+        checkpoint, container, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
@@ -153,6 +175,8 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
             pivots=pivots,
             network=network,
             checkpoint=checkpoint,
+            route=route,
+            max_displacement=max_displacement,
         )
     with naming(output):
         written = calippso.write(result, output)
