@@ -82,6 +82,9 @@ class StopReason(enum.Enum):
     STALLED = "stalled"
     #: The callback returned True.
     STOPPED_BY_CALLBACK = "stopped_by_callback"
+    #: ``time_limit`` seconds had passed after an LP or a Newton stage; the checkpoint, if
+    #: any, resumes the run.
+    TIME_LIMIT = "time_limit"
 
     @property
     def jammed(self) -> bool:
@@ -288,6 +291,7 @@ _HEADS = {
     StopReason.NOT_RIGID: ("Not jammed: the LPs converged after {lps} LPs, but no rigid contact "
                            "network holds the packing"),
     StopReason.STOPPED_BY_CALLBACK: "Stopped by the callback after {lps} LPs",
+    StopReason.TIME_LIMIT: "Stopped at the time limit after {lps} LPs",
     StopReason.STALLED: ("Stalled after {lps} LPs: the last {stall} gained nothing in Gamma "
                          "and their displacements did not shrink"),
     StopReason.MAX_ITERS: "Not converged after {lps} LPs (max_iters)",

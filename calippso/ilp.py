@@ -223,6 +223,8 @@ def _run(run: Run, state: LoopState, checkpoint: Checkpoint | None,
     followed by the convergence test, the Newton stage when its network is isostatic and
     the next step bound, with the state saved after each; then the finish."""
     settings, history = run.settings, run.history
+    deadline = (None if settings.time_limit is None
+                else time.perf_counter() + settings.time_limit)
     if settings.network_first != "off" and not history.records:
         state, certified = network_first(run, state, hint)
         if certified is not None:
@@ -270,9 +272,17 @@ def _run(run: Run, state: LoopState, checkpoint: Checkpoint | None,
                     break
                 verifying, state = True, replace(state, step=CLEANUP_STEP)
         save_state(checkpoint, run, state)
+        if _out_of_time(deadline):
+            reason = StopReason.TIME_LIMIT
+            break
     if network is None:
         raise run.fail(state, f"no LP was solved (max_iters = {settings.max_iters})")
     return finish(run, state, network, reason)
+
+
+def _out_of_time(deadline: float | None) -> bool:
+    """Whether the loop's time limit (`JamSettings.time_limit`) has passed."""
+    return deadline is not None and time.perf_counter() >= deadline
 
 
 def _adapted(state: LoopState, lp: LPStep, settings: JamSettings) -> LoopState:

@@ -102,7 +102,8 @@ class SettledNetwork:
 
 
 def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
-                     pivots: bool = True) -> tuple[SettledNetwork | None, str]:
+                     pivots: bool = True
+                     ) -> tuple[SettledNetwork | None, str, Refinement | None]:
     """Rounds of restricted LP and Newton from a candidate (module doc).
 
     Parameters
@@ -119,14 +120,17 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
 
     Returns
     -------
-    (SettledNetwork or None, str)
-        The settled network, or None and why the last round failed.
+    (SettledNetwork or None, str, Refinement or None)
+        The settled network, or None and why the last round failed; and the jamming point
+        of the last network Newton solved (None if it solved none), with its rattlers
+        unmoved: where a refused candidate got to.
     """
     n = search.positions.shape[0]
     current, base, near_gap = search, candidate.pairs, candidate.near_gap
     if not pivots and _isostaticity_gap(base, n, d) < 0:
-        return None, "the candidate misses contacts (its floppy modes close with pivots only)"
-    pairs, opened, failure = base, -1, ""
+        return (None, "the candidate misses contacts (its floppy modes close with pivots only)",
+                None)
+    pairs, opened, failure, reached = base, -1, "", None
     for round_number in range(1, MAX_ROUNDS + 1):
         # an isostatic or hypostatic candidate leaves the restricted LP no choice: the
         # floppy modes close and the pivots repair it instead
@@ -152,10 +156,10 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
             if closure is None and direct:
                 continue   # the restricted LP reads farther pairs instead
             if closure is None:
-                return None, f"the network misses {missing} contact(s): {failure}"
+                return None, f"the network misses {missing} contact(s): {failure}", reached
             i, j, rattlers, refined = closure.i, closure.j, closure.rattlers, closure.refinement
         elif missing != 0:
-            return None, "the restricted LP's network is not isostatic"
+            return None, "the restricted LP's network is not isostatic", reached
         else:
             refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
                                        ~rattlers)
@@ -168,8 +172,9 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         if refined is None and direct:
             continue   # the restricted LP chooses from the same pairs
         if refined is None:
-            return None, failure if pivots else NEWTON_FAILED
+            return None, failure if pivots else NEWTON_FAILED, reached
         current = NeighborSearch(refined.positions, refined.diameters, search.box)
+        reached = refined
         near = _near_pairs(current, near_gap)
         overlap = _overlaps_outside(near, i, j, rattlers).any()
         if (path is None and pivots and (closure is not None or not refined.positive)
@@ -183,18 +188,19 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
             if path is not None:   # the next round starts where the pivots stopped
                 i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement
                 current = NeighborSearch(refined.positions, refined.diameters, search.box)
+                reached = refined
                 near = _near_pairs(current, near_gap)
         if refined.positive and not overlap:
             gaps = search.pairs_of(i, j).gaps
             return SettledNetwork(i, j, rattlers, candidate.source, round_number, opened,
                                   float(gaps.max(initial=0.0)),
-                                  _from_input(refined, search, rattlers), path), ""
+                                  _from_input(refined, search, rattlers), path), "", reached
         if not overlap and pivots:
             failure = f"a non-positive force; pivots: {failure}"
         else:
             failure = "a non-positive force" if not refined.positive else "an overlap"
         base, pairs = current.pairs_of(i, j), near
-    return None, f"not settled in {MAX_ROUNDS} rounds ({failure})"
+    return None, f"not settled in {MAX_ROUNDS} rounds ({failure})", reached
 
 
 def _isostaticity_gap(pairs: Pairs, n: int, d: int) -> int:

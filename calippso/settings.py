@@ -110,6 +110,11 @@ class JamSettings:
         removed, and the Newton stage, the contact pivots and the certificate run after
         every LP. The LP steps are then centres of the optimal face: rattlers and floppy
         directions end mid-range rather than at the bound.
+    time_limit : float or None
+        Stop the loop, with `StopReason.TIME_LIMIT`, after the first LP (and its Newton
+        stage) that ends this many seconds after the loop began (network first included;
+        neither it nor an LP is interrupted). The result holds the configuration reached;
+        with a checkpoint, a second call resumes there. None (default): no limit.
     pin : bool
         Fix one particle's displacement to remove the d translational zero modes.
     verbose : bool
@@ -139,6 +144,7 @@ class JamSettings:
     warm_start: bool = True
     interior_point: str = "auto"
     crossover: str = "on"
+    time_limit: float | None = None
     pin: bool = True
     verbose: bool = False
 
@@ -164,6 +170,8 @@ class JamSettings:
                      "newton_start"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
+        if self.time_limit is not None and not self.time_limit > 0:
+            raise ValueError(f"time_limit must be > 0 seconds, got {self.time_limit!r}")
         if self.initial_step is not None and not self.initial_step > 0:
             raise ValueError(f"initial_step must be > 0, got {self.initial_step!r}")
         if not self.min_step <= self.max_step:

@@ -21,6 +21,7 @@ from calippso.step import analyse
 from configurations import bidisperse, ls_packing
 from conftest import assert_jammed
 from test_cylinder import assert_jammed_in_a_cylinder, cylinder_start
+from test_network_first import jammed_from_ls
 from test_walls import assert_jammed_between_walls, walled_start
 
 #: φ_J of the two engines where the LP path converges in a few LPs.
@@ -140,3 +141,41 @@ def test_in_a_cylinder():
     result = jam(start, crossover="off")
     assert result.converged, result.status
     assert_jammed_in_a_cylinder(result)
+
+
+def test_a_refused_hint_starts_the_lps_where_network_first_got_to():
+    """An LS state at p = 1e5 with its jammed network 20 swaps off as the hint: network
+    first refuses it, and the LPs start from the jamming point its rounds reached, at the
+    bound of its gap spectrum; they end at the LP path's jamming point."""
+    start, source = jammed_from_ls(3, 128, False, pressure=1e5)
+    packing = source.packing
+    close = NeighborSearch(packing.positions, packing.diameters, packing.box).pairs_within(
+        float(packing.diameters.max()) * 1.05)
+    contacts = set(map(tuple, source.contacts.tolist()))
+    outside = [(int(close.i[k]), int(close.j[k])) for k in np.argsort(close.gaps)
+               if (int(close.i[k]), int(close.j[k])) not in contacts]
+    hint = source.contacts.copy()
+    hint[0:120:6] = outside[:20]
+    result = jam(start, network=hint, crossover="off")
+    assert_jammed(result)
+    assert any(note.startswith("network first: no guessed network was certified")
+               for note in result.notes)
+    assert any(note.startswith("the LP loop started from the jamming point")
+               for note in result.notes)
+    assert result.phi == pytest.approx(source.phi, rel=SAME_PHI)
+
+
+def test_time_limit_stops_cleanly_and_the_checkpoint_resumes(tmp_path):
+    start = ls_packing(128, 3, seed=2, pressure=1e7)
+    whole = interior(start)
+    path = tmp_path / "run.npz"
+    stopped = interior(start, time_limit=1e-9, checkpoint=path)
+    assert stopped.stop_reason is StopReason.TIME_LIMIT and not stopped.converged
+    assert stopped.status.startswith("Stopped at the time limit after 1 LPs")
+    assert stopped.iterations == 1 and path.exists()
+    resumed = interior(start, checkpoint=path)
+    assert_jammed(resumed)
+    assert resumed.iterations == whole.iterations
+    assert resumed.phi == whole.phi
+    with pytest.raises(ValueError, match="time_limit must be > 0"):
+        jam(start, time_limit=0)

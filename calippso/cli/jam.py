@@ -86,6 +86,14 @@ def jam_record(result, source, output: Path | None) -> dict:
     help="Largest number of LPs.",
 )
 @click.option(
+    "--time-limit",
+    type=positive(float),
+    default=None,
+    help="Stop after the first LP (and its Newton stage) that ends this many seconds into the "
+    "loop; the output holds the configuration reached, and with --checkpoint a second call "
+    "resumes.",
+)
+@click.option(
     "--precompress",
     "precompress_pressure",
     type=positive(float),
@@ -137,7 +145,7 @@ def jam_record(result, source, output: Path | None) -> dict:
 @checkpoint_option
 @container_options
 @output_options
-def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
+def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters, time_limit,
         precompress_pressure, network_first, pivots, network_path, route, max_displacement,
         checkpoint, container, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
@@ -171,6 +179,7 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
             tol_gamma=tol_gamma,
             tol_s=tol_s,
             max_iters=max_iters,
+            time_limit=time_limit,
             network_first=network_first,
             pivots=pivots,
             network=network,

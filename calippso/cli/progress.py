@@ -14,7 +14,8 @@ STAGE_LABELS = {"lp": "LP", "cleanup": "clean-up LP", "newton": "Newton",
 
 
 class LPProgress:
-    """A tqdm bar over LPs showing the stage, √Γ − 1, max |s| and the contact count.
+    """A tqdm bar over LPs showing the stage, √Γ − 1, max |s|, the contact count, the LP's rows
+    and its interior-point iterations.
 
     It is a `jam` callback, called once per history record. Only the records of LP stages
     (`LP_STAGES`) tick the bar, so that its count is the number of LPs the summary reports;
@@ -63,6 +64,8 @@ class LPProgress:
                 "sqrt(G)-1": f"{record['sqrt_gamma_minus_1']:.1e}",
                 "max|s|": f"{record['max_displacement']:.1e}",
                 "contacts": int(record["n_contacts"]),
+                "rows": int(record["rows"]),
+                "IPM its": int(record["ipm_iterations"]),
             },
             refresh=False,
         )

@@ -54,7 +54,7 @@ def finish(run: Run, state: LoopState, network: ContactNetwork,
             if outcome.network is not None:
                 network, balance = outcome.network, run.history.last.force_balance
     if (balance > settings.balance_tolerance and network.from_lp
-            and not network.rattlers.all()):
+            and not network.rattlers.all() and reason is not StopReason.TIME_LIMIT):
         network, balance = _cleanup(run, state, network)
     if converged:
         network, balance, note = touching_network(
@@ -127,7 +127,8 @@ def _final_notes(run: Run, reason: StopReason) -> list[str]:
     notes = list(run.history.notes)
     if run.policy.retried_lps > 1:
         notes.append(f"{run.policy.retried_lps} LPs in all needed a retry")
-    if (not (reason.jammed or reason is StopReason.STOPPED_BY_CALLBACK)
+    if (not (reason.jammed or reason in (StopReason.STOPPED_BY_CALLBACK,
+                                         StopReason.TIME_LIMIT))
             and run.input_median_gap > LOOSE_INPUT_GAP):
         notes.append(f"the input is loose (median nearest-neighbour gap "
                      f"{run.input_median_gap:.1e} mean diameters), where the LP loop "

@@ -7,6 +7,11 @@ settled first (`calippso.network_first.settle_candidate`: restricted LP, Newton 
 pivots, a few rounds), then each goes to the Newton stage's certificate. Each candidate adds
 a history record (stage "guess"), a certified one also the pivot and Newton records; the
 notes say what happened.
+
+With ``crossover="off"``, a refused periodic input does not go back to the LP loop from
+where it started: the loop starts from the point the first candidate reached (the jamming
+point of the last network its rounds solved, `fallback_start`), with the bound its gap
+spectrum suggests (the candidate's near gap), and every LP's network goes to Newton.
 """
 
 from __future__ import annotations
@@ -21,11 +26,12 @@ from ..history import StopReason
 from ..network import ContactNetwork, network_key
 from ..network_first import SettledNetwork, settle_candidate
 from ..network_guess import Candidate, candidate_networks
-from ..rattlers import remove_rattlers
+from ..newton import Refinement
+from ..rattlers import remove_rattlers, separate_rattlers
 from .newton_stage import newton, record_pivots
 from .state import LoopState, Run
 
-__all__ = ["Certified", "network_first", "MAX_NETWORK_GUESSES"]
+__all__ = ["Certified", "network_first", "fallback_start", "MAX_NETWORK_GUESSES"]
 
 #: Candidate networks the network-first stage settles at most (each costs a few sparse
 #: factorisations).
@@ -64,10 +70,12 @@ def network_first(run: Run, state: LoopState,
         run.history.note("network first: the input holds no isostatic contact network "
                          "(not near a jamming point), so the LP loop ran")
         return state, None
-    failures = []
+    failures, first_reached = [], None
     for candidate in candidates:
-        settled, failure = settle_candidate(state.search, candidate, run.d,
-                                            pivots=run.settings.pivots != "off")
+        settled, failure, reached = settle_candidate(state.search, candidate, run.d,
+                                                     pivots=run.settings.pivots != "off")
+        if first_reached is None and reached is not None:
+            first_reached = (reached, candidate.near_gap)
         _record_guess(run, state, candidate, settled, time.perf_counter() - start)
         if settled is not None:
             if settled.pivots is not None:
@@ -96,7 +104,50 @@ def network_first(run: Run, state: LoopState,
         start = time.perf_counter()
     run.history.note(f"network first: no guessed network was certified "
                      f"({'; '.join(failures)}), so the LP loop ran")
+    if run.settings.crossover == "off" and first_reached is not None:
+        state = fallback_start(run, state, *first_reached)
     return state, None
+
+
+def fallback_start(run: Run, state: LoopState, reached: Refinement,
+                   near_gap: float) -> LoopState:
+    """The LP loop's start after a refused candidate: the jamming point it reached.
+
+    Its rattlers were not moved while the diameters grew, so the particles that overlap
+    there are moved apart by the small LP of `calippso.rattlers.separate_rattlers` (or,
+    where that finds no room, every diameter shrinks by the worst overlap). The first
+    bound is the candidate's near gap (clipped to the settings' range): the pairs that
+    may still close lie within it.
+
+    Parameters
+    ----------
+    reached : Refinement
+        The jamming point of the last network the candidate's rounds solved.
+    near_gap : float
+        The candidate's `calippso.network_guess.Candidate.near_gap`.
+    """
+    positions, diameters = reached.positions, reached.diameters
+    search = run.search(positions, diameters)
+    close = search.pairs_near_contact()
+    overlapping = close.gaps < 0
+    moved_apart = 0
+    if overlapping.any():
+        movable = np.zeros(run.n, dtype=bool)
+        movable[close.i[overlapping]] = movable[close.j[overlapping]] = True
+        separated = separate_rattlers(positions, diameters, run.box, movable)
+        if separated is not None:
+            positions, moved_apart = separated, int(movable.sum())
+            search = run.search(positions, diameters)
+        smallest = search.pairs_near_contact().smallest_gap()
+        if smallest < 0:
+            diameters = diameters * (1.0 + smallest)
+            search = run.search(positions, diameters)
+    step = float(np.clip(near_gap, run.settings.min_step, run.settings.max_step))
+    growth = float(np.mean(diameters / state.diameters)) - 1.0
+    run.history.note(f"the LP loop started from the jamming point of the first candidate's "
+                     f"last network (diameters x (1 {growth:+.1e}), {moved_apart} overlapping "
+                     f"particle(s) moved apart), with bound {step:.1e}")
+    return replace(run.moved(state, positions, diameters, search), step=step)
 
 
 def _in_a_container(run: Run, state: LoopState) -> tuple[LoopState, Certified | None]:

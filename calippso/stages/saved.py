@@ -23,7 +23,7 @@ from .state import LoopState, Run
 __all__ = ["save_state", "resumed", "checkpoint_signature", "CHECKPOINT_FREE_SETTINGS"]
 
 #: Settings that do not change the sequence of LPs, left out of a checkpoint's signature.
-CHECKPOINT_FREE_SETTINGS = ("verbose", "max_iters")
+CHECKPOINT_FREE_SETTINGS = ("verbose", "max_iters", "time_limit")
 
 
 def checkpoint_signature(packing: Packing, settings: JamSettings) -> dict:
