@@ -223,8 +223,7 @@ def _run(run: Run, state: LoopState, checkpoint: Checkpoint | None,
     followed by the convergence test, the Newton stage when its network is isostatic and
     the next step bound, with the state saved after each; then the finish."""
     settings, history = run.settings, run.history
-    deadline = (None if settings.time_limit is None
-                else time.perf_counter() + settings.time_limit)
+    deadline = None if settings.time_limit is None else time.perf_counter() + settings.time_limit
     if settings.network_first != "off" and not history.records:
         state, certified = network_first(run, state, hint)
         if certified is not None:

@@ -1,0 +1,177 @@
+"""One LP without crossover against N: what `jam(..., crossover="off")` pays per LP.
+
+For each input, the first LP that `calippso.jam` builds (its rows at the first bound, one
+particle pinned) is solved by HiGHS's interior point without crossover, as the loop solves
+it; then its network is read by strict complementarity (`calippso.complementarity`) and,
+when isostatic, solved by Newton from the moved positions. Inputs are soft-sphere quenches
+(`generators.soft_quench`, seed --seed, at the default target pressure) made once and kept
+in --cache, or files given with --input. --tile K repeats an input K times along every
+axis (N K^d particles), for an LP of that size when no quench of it is at hand. Run from
+the repository root:
+
+    python bench/interior_lp.py --cases 3:1024 3:2048 3:4096 3:8192 --cache /work/cache
+    python bench/interior_lp.py --cases 3:2048 --tile 2 --cache /work/cache   # N = 16384
+    python bench/interior_lp.py --cases 3:1024 --tolerance 1e-8 1e-10 1e-12 --json t.json
+
+Columns: N, d, the LP's rows and columns, the interior point, seconds inside HiGHS, of which
+HiPO's analysis (ordering), its iterations, the factor's nonzeros, fill-in and flops (HiPO's
+log; IPX reports none), seconds to read complementarity and its margin (decades by which
+the least clear row was read apart), contacts read, isostaticity gap after rattler removal,
+and the seconds of the Newton stage on that network (positive forces or not).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import tempfile
+import time
+
+import numpy as np
+
+import calippso
+from calippso.complementarity import read_complementarity
+from calippso.ilp import initial_step_bound, median_gap
+from calippso.lp import build_lp, select_pairs
+from calippso.neighbors import NeighborSearch
+from calippso.newton import pinned_coordinates, refine_isostatic
+from calippso.packing import Packing, wrap
+from calippso.settings import JamSettings
+from calippso.solvers.highs import (HighsOptions, _interior_solution, _quiet_highs,
+                                    interior_point_for)
+from calippso.step import analyse
+
+#: HiPO's log lines read into the table: label in the log -> column.
+HIPO_LOG = {"Analyse time": "analyse_s", "Nnz": "factor_nnz", "Fill-in": "fill_in",
+            "Flops": "flops"}
+
+
+def quench(d: int, n: int, seed: int, cache: str) -> tuple[Packing, float]:
+    """The quench of `n` spheres in `d` dimensions (read from `cache` when made before) and
+    the seconds spent making it (0 when read)."""
+    import generators
+
+    pressure = generators.default_target_pressure(n, d)
+    path = os.path.join(cache, f"quench_d{d}_n{n}_p{pressure:g}_seed{seed}.npz")
+    if os.path.exists(path):
+        return calippso.read(path), 0.0
+    began = time.perf_counter()
+    made = generators.soft_quench(generators.diameters.monodisperse(n), d, seed=seed,
+                                  target_pressure=pressure)
+    packing = made.packing
+    np.savez(path, positions=packing.positions, diameters=packing.diameters, box=packing.box,
+             contacts=made.contacts)
+    return packing, time.perf_counter() - began
+
+
+def tiled(packing: Packing, k: int) -> Packing:
+    """`packing` repeated `k` times along every axis of its periodic box."""
+    if k == 1:
+        return packing
+    d = packing.d
+    shifts = np.stack(np.meshgrid(*[np.arange(k)] * d, indexing="ij"), -1).reshape(-1, d)
+    positions = (packing.positions[None] + shifts[:, None] * packing.box).reshape(-1, d)
+    return Packing(positions, np.tile(packing.diameters, len(shifts)), packing.box * k)
+
+
+def one_lp(packing: Packing, tolerance: float, interior_point: str) -> dict:
+    """Solve the first LP of `jam` on `packing` without crossover and read it (module doc)."""
+    scale = packing.mean_diameter
+    box = packing.box / scale
+    positions, diameters = wrap(packing.positions / scale, box), packing.diameters / scale
+    search = NeighborSearch(positions, diameters, box)
+    settings = JamSettings(crossover="off")
+    bound = initial_step_bound(median_gap(search), settings)
+    fixed = pinned_coordinates(positions, box, np.ones(packing.n, bool), packing.boundaries)
+    lp = build_lp(select_pairs(search, bound), packing.n, packing.d, bound, fixed)
+    options = HighsOptions(crossover=False, interior_point=interior_point,
+                           interior_optimality_tolerance=tolerance)
+    with tempfile.TemporaryDirectory() as folder:
+        log = os.path.join(folder, "highs.log")
+        highs = _quiet_highs()
+        highs.setOptionValue("primal_feasibility_tolerance", options.feasibility_tolerance)
+        highs.setOptionValue("dual_feasibility_tolerance", options.feasibility_tolerance)
+        highs.setOptionValue("log_file", log)
+        began = time.perf_counter()
+        highs.passModel(_model(lp))
+        solution = _interior_solution(highs, lp, options, began)
+        highs.setOptionValue("log_file", "")
+        text = open(log).read()
+    row = {"n": packing.n, "d": packing.d, "rows": lp.n_rows, "cols": lp.n_cols,
+           "bound": bound, "tolerance": tolerance,
+           "method": interior_point_for(lp, interior_point), "status": solution.status,
+           "solver_s": solution.seconds, "ipm_iterations": solution.ipm_iterations}
+    for label, column in HIPO_LOG.items():
+        found = re.findall(rf"^{label}:\s+(\S+)", text, flags=re.M)
+        row[column] = float(found[-1]) if found else float("nan")
+    began = time.perf_counter()
+    reading = read_complementarity(lp, solution)
+    taken = analyse(lp, solution, settings)
+    row.update(read_s=time.perf_counter() - began, margin=reading.margin,
+               contacts=taken.n_contacts,
+               isostaticity_gap=int(taken.n_contacts
+                                    - packing.d * (packing.n - taken.rattlers.sum() - 1) - 1))
+    row["newton_s"], row["positive"] = float("nan"), None
+    if row["isostaticity_gap"] == 0:
+        network = taken.network()
+        moved = wrap(positions + taken.displacements, box)
+        began = time.perf_counter()
+        refined = refine_isostatic(moved, diameters * np.sqrt(1 + solution.gamma), box,
+                                   network.i, network.j, ~network.rattlers)
+        row["newton_s"] = time.perf_counter() - began
+        row["positive"] = None if refined is None else bool(refined.positive)
+    return row
+
+
+def _model(lp):
+    from calippso.solvers.highs import highs_model
+
+    return highs_model(lp)
+
+
+def print_row(row: dict) -> None:
+    print(f"{row['n']:6d} {row['d']:2d} {row['rows']:7d} {row['cols']:7d} {row['method']:>5} "
+          f"{row['tolerance']:7.0e} {row['solver_s']:8.2f} {row['analyse_s']:7.2f} "
+          f"{row['ipm_iterations']:4d} {row['factor_nnz']:9.2e} {row['fill_in']:6.1f} "
+          f"{row['flops']:8.1e} {row['read_s']:6.3f} {row['margin']:6.2f} "
+          f"{row['contacts']:7d} {row['isostaticity_gap']:5d} {row['newton_s']:7.2f} "
+          f"{row['positive']}", flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--cases", nargs="*", default=["3:1024"], help="d:N quenches")
+    parser.add_argument("--input", nargs="*", default=[], help="packing files instead")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--cache", default="", help="folder for the quenches")
+    parser.add_argument("--tile", type=int, default=1)
+    parser.add_argument("--tolerance", type=float, nargs="*",
+                        default=[HighsOptions().interior_optimality_tolerance])
+    parser.add_argument("--interior-point", default="auto", choices=["auto", "ipx", "hipo"])
+    parser.add_argument("--json", default="")
+    args = parser.parse_args()
+    inputs = [(path, lambda p=path: (calippso.read(p), 0.0)) for path in args.input]
+    for case in args.cases if not args.input else []:
+        d, n = map(int, case.split(":"))
+        inputs.append((case, lambda d=d, n=n: quench(d, n, args.seed, args.cache or ".")))
+    print(f"{'N':>6} {'d':>2} {'rows':>7} {'cols':>7} {'ipm':>5} {'tol':>7} {'LP s':>8} "
+          f"{'anal s':>7} {'its':>4} {'factor':>9} {'fill':>6} {'flops':>8} {'read s':>6} "
+          f"{'margin':>6} {'Nc':>7} {'iso':>5} {'Newt s':>7} positive")
+    rows = []
+    for name, make in inputs:
+        packing, made = make()
+        packing = tiled(packing, args.tile)
+        for tolerance in args.tolerance:
+            row = {"input": name, "tile": args.tile, "make_s": made,
+                   **one_lp(packing, tolerance, args.interior_point)}
+            print_row(row)
+            rows.append(row)
+    if args.json:
+        with open(args.json, "w") as handle:
+            json.dump(rows, handle, indent=1)
+
+
+if __name__ == "__main__":
+    main()
