@@ -25,6 +25,7 @@ _LAZY = {
     "write": ("calippso.io", "write"),
     "analysis": ("calippso.analysis", None),  # the module itself
     "report": ("calippso.reporting", "report"),
+    "jamming_category": ("calippso.categories", "jamming_category"),
 }
 
 __all__ = ["Packing", "Boundaries", "__version__", *_LAZY]
