@@ -87,7 +87,8 @@ CLASSES = ("local", "collective", "strict")
 #: non-contact in a jammed packing of a few thousand particles is of order 1e-6.
 DEFAULT_CONTACT_TOLERANCE = 1e-9
 #: A pair whose gap lies between the contact tolerance and this many times it is neither
-#: clearly a contact nor clearly open: the packing is refused.
+#: clearly a contact nor clearly open: the packing is refused, unless one of the two is a
+#: rattler anyway.
 AMBIGUITY_WINDOW = 100.0
 #: Bound on every component of a motion in the LPs (displacements in mean diameters, strain
 #: entries dimensionless): it only scales the witnesses.
@@ -260,8 +261,8 @@ def jamming_category(packing_or_result, *, contact_tolerance: float | None = Non
     contact_tolerance : float, optional
         Pairs (and particle–wall pairs) with a relative gap at most this are contacts.
         Default: the contacts of a `JammingResult`, `DEFAULT_CONTACT_TOLERANCE` for a
-        `Packing`. Gaps between the tolerance and `AMBIGUITY_WINDOW` times it, or overlaps
-        deeper than it, are refused.
+        `Packing`. Gaps between the tolerance and `AMBIGUITY_WINDOW` times it (between
+        particles that are not rattlers), or overlaps deeper than it, are refused.
     seed : int
         Seed of the random objectives of the floppy LPs.
     up_to : {"local", "collective", "strict"}
@@ -330,7 +331,8 @@ def _contacts_of(packing_or_result, contact_tolerance):
 
 def _contacts_within(packing: Packing, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
     """Pairs and particle–wall pairs with relative gap ≤ `tolerance`, refusing overlaps
-    deeper than it and gaps in (tolerance, AMBIGUITY_WINDOW · tolerance]."""
+    deeper than it and gaps in (tolerance, AMBIGUITY_WINDOW · tolerance] between particles
+    that are not rattlers when every pair within the window is taken as a contact."""
     reach = 1.0 + AMBIGUITY_WINDOW * tolerance
     periodic = None if packing.boundaries.is_periodic else packing.periodic
     search = NeighborSearch(packing.positions, packing.diameters, packing.box, periodic)
@@ -349,7 +351,13 @@ def _contacts_within(packing: Packing, tolerance: float) -> tuple[np.ndarray, np
     if every.size and every.min() < -tolerance:
         raise ValueError(f"the packing overlaps: the deepest relative gap is {every.min():.3e}, "
                          f"beyond the contact tolerance {tolerance:.1e}")
-    unclear = every[every > tolerance]
+    # a pair that is a contact or not changes nothing when one of its particles is a
+    # rattler even if every such pair were a contact (rattlers sit 1e-9 from their cages)
+    generous, _ = remove_rattlers(packing.n, packing.d, near.i[close], near.j[close],
+                                  wall_pairs[:, 0])
+    matters = np.concatenate([~(generous[near.i[close]] | generous[near.j[close]]),
+                              ~generous[wall_pairs[:, 0]]])
+    unclear = every[(every > tolerance) & matters]
     if unclear.size:
         raise ValueError(f"contacts are ambiguous: {unclear.size} pair(s) have relative gaps "
                          f"between the contact tolerance {tolerance:.1e} and "
