@@ -58,6 +58,8 @@ __all__ = [
     "run",
     "run_on_scheduler",
     "run_one",
+    "threads_per_worker",
+    "limit_threads",
     "store",
     "summary_record",
 ]
@@ -333,6 +335,27 @@ def _seeds(seeds: int | Iterable[int] | None, n_packings: int) -> list[int]:
     return seeds
 
 
+def threads_per_worker(workers: int) -> int:
+    """The cores of this machine shared out among `workers` processes (at least 1 each)."""
+    return max(1, (os.cpu_count() or 1) // max(1, workers))
+
+
+def limit_threads(threads: int) -> None:
+    """Give this process `threads` threads for Numba's parallel loops, BLAS and MKL.
+
+    Run first in each worker process of the local pool, before the worker imports Numba or
+    MKL (their thread counts are read from the environment when they load); BLAS, already
+    loaded with numpy, is limited through `threadpoolctl`.
+    """
+    from threadpoolctl import threadpool_limits
+
+    value = str(max(1, int(threads)))
+    for variable in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
+                     "OPENBLAS_NUM_THREADS"):
+        os.environ[variable] = value
+    threadpool_limits(int(value))
+
+
 def _is_dask(executor) -> bool:
     return type(executor).__module__.split(".")[0] == "distributed"
 
@@ -345,6 +368,7 @@ def run(
     out_dir: str | os.PathLike,
     executor=None,
     workers: int | None = None,
+    threads: int | None = None,
     progress: bool = False,
 ) -> list[dict]:
     """Run an ensemble: one generate → jam → analyse task per seed, resuming earlier runs.
@@ -366,6 +390,11 @@ def run(
         their state files in `out_dir`, so they must see it.
     workers : int, optional
         Size of the default local pool (default: the number of cores).
+    threads : int, optional
+        Threads of each worker of the default pool, for Numba's parallel loops, BLAS and
+        MKL (`limit_threads`). Default: `threads_per_worker`, the cores shared out among
+        the workers, so that workers × threads never exceeds the cores: oversubscribed
+        threads spin-wait on each other's parallel regions.
     progress : bool
         Show a tqdm bar over packings.
 
@@ -401,9 +430,11 @@ def run(
         bar = _bar(progress, len(seeds), len(rows))
         owned = executor is None
         if owned:
+            n_workers = min(workers or os.cpu_count() or 1, len(pending))
             executor = concurrent.futures.ProcessPoolExecutor(
-                max_workers=min(workers or os.cpu_count() or 1, len(pending)),
-                mp_context=multiprocessing.get_context("spawn"),
+                max_workers=n_workers, mp_context=multiprocessing.get_context("spawn"),
+                initializer=limit_threads,
+                initargs=(threads_per_worker(n_workers) if threads is None else threads,),
             )
         try:
             for outcome in _completed(executor, spec, pending, out_dir):

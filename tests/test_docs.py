@@ -82,6 +82,45 @@ def test_readme_shell_lines_are_valid_commands(tmp_path, monkeypatch):
         _parse(args)
 
 
+GUIDES = sorted((ROOT / "docs").glob("*.md")) + sorted((ROOT / "docs" / "howto").glob("*.md"))
+
+
+@pytest.mark.parametrize("page", GUIDES, ids=lambda p: p.name)
+def test_every_calippso_command_in_the_guides_parses(page, tmp_path, monkeypatch):
+    """Each line of a guide's bash blocks that runs `calippso` names commands and options
+    the CLI has (a guide that promises an option the CLI lacks fails here)."""
+    monkeypatch.chdir(tmp_path)
+    for block in _blocks(page, "bash"):
+        for line in block.replace("\\\n", " ").splitlines():
+            words = shlex.split(line, comments=True)
+            if not words or words[0] != "calippso" or "|" in words or "&&" in words:
+                continue
+            args = words[1:]
+            if not args or args[0] in ("--help", "--version") or "--help" in args:
+                continue
+            for argument in args:   # the files that the lines before write
+                if not argument.startswith("-") and Path(argument).suffix:
+                    path = Path(argument.replace("*", "0").replace("..", "up"))
+                    path.parent.mkdir(parents=True, exist_ok=True)
+                    path.touch()
+                    args[args.index(argument)] = str(path)
+            _parse(args)
+
+
+def test_containers_guide_names_the_generators_that_take_containers():
+    """docs/containers.md's sentence on `calippso generate` lists exactly the generators
+    whose command takes --walls and --cylinder."""
+    sentence = _paragraph(ROOT / "docs" / "containers.md", "passes it to the generator")
+    taking = sentence.split("take walls and a cylinder")[0].split("passes it to the generator")[1]
+    listed = set(re.findall(r"`([a-z]+)`", taking))
+    generate = cli.get_command(click.Context(cli), "generate")
+    context = click.Context(generate)
+    with_containers = {
+        name for name in generate.list_commands(context)
+        if {"walls", "cylinder"} <= {p.name for p in generate.get_command(context, name).params}}
+    assert listed == with_containers
+
+
 def test_demo_time_is_the_same_in_the_help_and_the_docs():
     help_text = cli.get_command(click.Context(cli), "demo").help
     figures = DEMO_SECONDS.findall(help_text)

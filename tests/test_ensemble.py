@@ -6,6 +6,7 @@ import concurrent.futures
 import csv
 import dataclasses
 import json
+import multiprocessing
 import os
 import re
 
@@ -22,8 +23,8 @@ SPEC = {"protocol": "ls", "n": 24, "d": 2, "distribution": "bidisperse"}
 def local_threads(monkeypatch):
     """Local workers run as threads instead of spawned processes (a spawned worker starts a
     fresh interpreter, ~2 s), for the tests whose point is not the processes."""
-    def threads(max_workers, mp_context=None):
-        return concurrent.futures.ThreadPoolExecutor(max_workers)
+    def threads(max_workers, mp_context=None, initializer=None, initargs=()):
+        return concurrent.futures.ThreadPoolExecutor(max_workers)  # no thread limits here
 
     monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", threads)
 
@@ -184,3 +185,24 @@ def test_cli_refuses_a_rerun_with_other_parameters(tmp_path, capfd, local_thread
     assert main([*args, "--packings", "2", "--n", "20"]) == 1  # the command's own error line
     assert capfd.readouterr().err == f"error: {changed.exception}\n"
     assert len(_table(folder)) == 2
+
+
+def _worker_threads() -> tuple[int, list[int]]:
+    """Numba's threads and the BLAS / OpenMP pools' threads of this process."""
+    import numba
+    from threadpoolctl import threadpool_info
+
+    return numba.get_num_threads(), [pool["num_threads"] for pool in threadpool_info()]
+
+
+def test_pool_workers_share_out_the_cores():
+    """Each worker of the local pool computes on its share of the cores (oversubscribed
+    threads spin-wait on each other's parallel regions)."""
+    assert ensemble.threads_per_worker(1) == (os.cpu_count() or 1)
+    assert ensemble.threads_per_worker(4 * (os.cpu_count() or 1)) == 1
+    with concurrent.futures.ProcessPoolExecutor(
+            1, mp_context=multiprocessing.get_context("spawn"),
+            initializer=ensemble.limit_threads, initargs=(1,)) as pool:
+        numba_threads, pools = pool.submit(_worker_threads).result()
+    assert numba_threads == 1
+    assert pools and set(pools) == {1}

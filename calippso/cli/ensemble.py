@@ -58,6 +58,13 @@ from .common import (diameter_options, final_growth_rate_option, output_options,
     help="Local worker processes (default: the number of cores).",
 )
 @click.option(
+    "--threads",
+    type=positive(int),
+    default=None,
+    help="Threads of each local worker (Numba, BLAS, MKL); default: the cores shared out "
+    "among the workers.",
+)
+@click.option(
     "--scheduler",
     metavar="ADDRESS",
     default=None,
@@ -80,6 +87,7 @@ def ensemble(
     solver,
     output,
     workers,
+    threads,
     scheduler,
     out,
 ):
@@ -110,7 +118,8 @@ def ensemble(
             ) from None
     else:
         table = runs.run(
-            spec, packings, seeds=seeds, out_dir=output, workers=workers, progress=out.progress
+            spec, packings, seeds=seeds, out_dir=output, workers=workers, threads=threads,
+            progress=out.progress
         )
     failed = [row for row in table if row["state"] == "failed"]
     record = {

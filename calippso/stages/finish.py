@@ -18,6 +18,7 @@ from ..history import StopReason, status_sentence
 from ..network import (ContactNetwork, network_balance, polished_forces,
                        remove_roundoff_overlaps, touching_network)
 from ..newton import pinned_coordinates
+from ..packing import Packing
 from ..result import JammingResult
 from .lp_step import record_lp, solve_lp
 from .newton_stage import newton
@@ -48,11 +49,13 @@ def finish(run: Run, state: LoopState, network: ContactNetwork,
     settings = run.settings
     converged = reason.jammed
     balance = network_balance(state.search, network, run.boundaries)
+    certified = False    # by the Newton certificate: an isostatic network, positive forces
     if balance > settings.balance_tolerance and network.from_lp and converged:
         if settings.newton:
             state, outcome = newton(run, state, network, retry=True)
             if outcome.network is not None:
                 network, balance = outcome.network, run.history.last.force_balance
+                certified = True
     if (balance > settings.balance_tolerance and network.from_lp
             and not network.rattlers.all() and reason is not StopReason.TIME_LIMIT):
         network, balance = _cleanup(run, state, network)
@@ -83,9 +86,18 @@ def finish(run: Run, state: LoopState, network: ContactNetwork,
         run.history.note(f"not a certified jamming point: the LPs converged between walls "
                          f"with a hypostatic network (gap {gap:+d}), a floppy mode that "
                          f"moving particles out of their layers did not remove")
-    if reason is StopReason.CONVERGED and (network.n_stable == 0 or gap < 0):
-        # the tolerances were met, but no rigid network holds the packing
-        reason, converged = StopReason.NOT_RIGID, False
+    if reason is StopReason.CONVERGED:
+        # the tolerances were met; is a rigid network holding the packing? Not when none is
+        # left or it is hypostatic, nor when the linear test finds an unjamming motion
+        unjamming = None
+        if network.n_stable > 0 and gap >= 0 and not certified:
+            unjamming, undecided = _unjamming_motion(
+                run.packing(state), contacts[order], wall_contacts[wall_order],
+                network.rattlers)
+            _note(run, unjamming)
+            _note(run, undecided)
+        if network.n_stable == 0 or gap < 0 or unjamming is not None:
+            reason, converged = StopReason.NOT_RIGID, False
     notes = _final_notes(run, reason)
     history = run.history
     return JammingResult(
@@ -104,16 +116,44 @@ def _cleanup(run: Run, state: LoopState,
              network: ContactNetwork) -> tuple[ContactNetwork, float]:
     """Contacts and forces from an LP at the final positions, rattlers and one stable
     particle fixed, bound `CLEANUP_STEP`: its network and force balance (history record
-    stage "cleanup")."""
+    stage "cleanup"). Its rows join stable particles only, so a move it makes is no proof of
+    a floppy motion (a stable particle may move into a frozen rattler): rigidity is decided
+    by `_unjamming_motion`."""
     stable = ~network.rattlers
     fixed = np.repeat(network.rattlers[:, None], run.d, axis=1)
     fixed |= pinned_coordinates(state.positions, run.box, stable, run.boundaries)
     cleanup = solve_lp(run, state, CLEANUP_STEP, fixed, stable=stable)
     record_lp(run, state, cleanup, run.history.last.min_gap, stage="cleanup")
-    if cleanup.max_displacement > 0.5 * CLEANUP_STEP:
-        run.history.note("the force clean-up LP found a floppy motion: the packing is "
-                         "not rigid")
     return cleanup.network(), cleanup.balance
+
+
+def _unjamming_motion(packing: Packing, contacts: np.ndarray, wall_contacts: np.ndarray,
+                      rattlers: np.ndarray) -> tuple[str | None, str | None]:
+    """Why the packing is not collectively jammed (None when it is), and a note when the
+    test could not decide (its LP failed: the run keeps its reason, unverified).
+
+    The linear test of `calippso.categories` (collective class) on the network's contacts
+    and every other pair that touches (`calippso.touching`): a motion that keeps every
+    touching pair from overlapping to first order and moves stable particles is an
+    unjamming motion, and the packing is not rigid whatever its contact count.
+    """
+    from ..categories import jamming_category
+    from ..touching import touching_outside_network
+
+    touching = touching_outside_network(packing, contacts, rattlers, wall_contacts)
+    every = JammingResult(
+        packing=packing, contacts=np.concatenate([contacts, touching.pairs]),
+        forces=np.zeros(0), rattlers=rattlers, converged=False, status="", iterations=0,
+        wall_contacts=np.concatenate([wall_contacts, touching.walls]))
+    try:
+        category = jamming_category(every, up_to="collective")
+    except (RuntimeError, ValueError) as error:   # the test's LP failed, or a refusal
+        return None, f"collective jamming not verified: {error}"
+    if category.category in ("collective", "strict"):
+        return None, None
+    what = "opens contacts" if category.opens_contacts else "keeps every contact closed"
+    return (f"the linear test of collective jamming found an unjamming motion that {what} "
+            f"(failed class: {category.failed}): the packing is not rigid"), None
 
 
 def _note(run: Run, note: str | None) -> None:
