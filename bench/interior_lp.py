@@ -12,12 +12,14 @@ the repository root:
     python bench/interior_lp.py --cases 3:1024 3:2048 3:4096 3:8192 --cache /work/cache
     python bench/interior_lp.py --cases 3:2048 --tile 2 --cache /work/cache   # N = 16384
     python bench/interior_lp.py --cases 3:1024 --tolerance 1e-8 1e-10 1e-12 --json t.json
+    python bench/interior_lp.py --cases 3:8192 --threads 2 --cache /work/cache
 
 Columns: N, d, the LP's rows and columns, the interior point, seconds inside HiGHS, of which
 HiPO's analysis (ordering), its iterations, the factor's nonzeros, fill-in and flops (HiPO's
 log; IPX reports none), seconds to read complementarity and its margin (decades by which
 the least clear row was read apart), contacts read, isostaticity gap after rattler removal,
-and the seconds of the Newton stage on that network (positive forces or not).
+and the seconds of the Newton stage on that network (positive forces or not, and how many
+are not).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import argparse
 import json
 import os
 import re
+import sys
 import tempfile
 import time
 
@@ -36,7 +39,7 @@ from calippso.complementarity import read_complementarity
 from calippso.ilp import initial_step_bound, median_gap
 from calippso.lp import build_lp, select_pairs
 from calippso.neighbors import NeighborSearch
-from calippso.newton import pinned_coordinates, refine_isostatic
+from calippso.newton import MIN_FORCE_RATIO, pinned_coordinates, refine_isostatic
 from calippso.packing import Packing, wrap
 from calippso.settings import JamSettings
 from calippso.solvers.highs import (HighsOptions, _interior_solution, _quiet_highs,
@@ -44,8 +47,8 @@ from calippso.solvers.highs import (HighsOptions, _interior_solution, _quiet_hig
 from calippso.step import analyse
 
 #: HiPO's log lines read into the table: label in the log -> column.
-HIPO_LOG = {"Analyse time": "analyse_s", "Nnz": "factor_nnz", "Fill-in": "fill_in",
-            "Flops": "flops"}
+HIPO_LOG = {"Threads": "threads", "Analyse time": "analyse_s", "Nnz": "factor_nnz",
+            "Fill-in": "fill_in", "Flops": "flops"}
 
 
 def quench(d: int, n: int, seed: int, cache: str) -> tuple[Packing, float]:
@@ -76,7 +79,7 @@ def tiled(packing: Packing, k: int) -> Packing:
     return Packing(positions, np.tile(packing.diameters, len(shifts)), packing.box * k)
 
 
-def one_lp(packing: Packing, tolerance: float, interior_point: str) -> dict:
+def one_lp(packing: Packing, tolerance: float, interior_point: str, threads: int = 0) -> dict:
     """Solve the first LP of `jam` on `packing` without crossover and read it (module doc)."""
     scale = packing.mean_diameter
     box = packing.box / scale
@@ -93,11 +96,21 @@ def one_lp(packing: Packing, tolerance: float, interior_point: str) -> dict:
         highs = _quiet_highs()
         highs.setOptionValue("primal_feasibility_tolerance", options.feasibility_tolerance)
         highs.setOptionValue("dual_feasibility_tolerance", options.feasibility_tolerance)
-        highs.setOptionValue("log_file", log)
+        highs.setOptionValue("output_flag", True)   # HiPO logs to the console only
+        if threads:
+            highs.setOptionValue("threads", threads)
         began = time.perf_counter()
-        highs.passModel(_model(lp))
-        solution = _interior_solution(highs, lp, options, began)
-        highs.setOptionValue("log_file", "")
+        with open(log, "w") as sink:
+            sys.stdout.flush()
+            saved = os.dup(1)
+            os.dup2(sink.fileno(), 1)
+            try:
+                highs.passModel(_model(lp))
+                solution = _interior_solution(highs, lp, options, began)
+            finally:
+                os.dup2(saved, 1)
+                os.close(saved)
+        highs.setOptionValue("output_flag", False)
         text = open(log).read()
     row = {"n": packing.n, "d": packing.d, "rows": lp.n_rows, "cols": lp.n_cols,
            "bound": bound, "tolerance": tolerance,
@@ -113,7 +126,7 @@ def one_lp(packing: Packing, tolerance: float, interior_point: str) -> dict:
                contacts=taken.n_contacts,
                isostaticity_gap=int(taken.n_contacts
                                     - packing.d * (packing.n - taken.rattlers.sum() - 1) - 1))
-    row["newton_s"], row["positive"] = float("nan"), None
+    row["newton_s"], row["positive"], row["nonpositive"] = float("nan"), None, None
     if row["isostaticity_gap"] == 0:
         network = taken.network()
         moved = wrap(positions + taken.displacements, box)
@@ -122,6 +135,8 @@ def one_lp(packing: Packing, tolerance: float, interior_point: str) -> dict:
                                    network.i, network.j, ~network.rattlers)
         row["newton_s"] = time.perf_counter() - began
         row["positive"] = None if refined is None else bool(refined.positive)
+        row["nonpositive"] = (None if refined is None else int(np.count_nonzero(
+            refined.forces <= MIN_FORCE_RATIO * refined.forces.max())))
     return row
 
 
@@ -135,9 +150,9 @@ def print_row(row: dict) -> None:
     print(f"{row['n']:6d} {row['d']:2d} {row['rows']:7d} {row['cols']:7d} {row['method']:>5} "
           f"{row['tolerance']:7.0e} {row['solver_s']:8.2f} {row['analyse_s']:7.2f} "
           f"{row['ipm_iterations']:4d} {row['factor_nnz']:9.2e} {row['fill_in']:6.1f} "
-          f"{row['flops']:8.1e} {row['read_s']:6.3f} {row['margin']:6.2f} "
+          f"{row['flops']:8.1e} {row['threads']:3.0f} {row['read_s']:6.3f} {row['margin']:6.2f} "
           f"{row['contacts']:7d} {row['isostaticity_gap']:5d} {row['newton_s']:7.2f} "
-          f"{row['positive']}", flush=True)
+          f"{row['positive']} ({row['nonpositive']})", flush=True)
 
 
 def main() -> None:
@@ -150,6 +165,8 @@ def main() -> None:
     parser.add_argument("--tolerance", type=float, nargs="*",
                         default=[HighsOptions().interior_optimality_tolerance])
     parser.add_argument("--interior-point", default="auto", choices=["auto", "ipx", "hipo"])
+    parser.add_argument("--threads", type=int, default=0,
+                        help="HiGHS's threads (0: its own choice, half the cores)")
     parser.add_argument("--json", default="")
     args = parser.parse_args()
     inputs = [(path, lambda p=path: (calippso.read(p), 0.0)) for path in args.input]
@@ -157,7 +174,8 @@ def main() -> None:
         d, n = map(int, case.split(":"))
         inputs.append((case, lambda d=d, n=n: quench(d, n, args.seed, args.cache or ".")))
     print(f"{'N':>6} {'d':>2} {'rows':>7} {'cols':>7} {'ipm':>5} {'tol':>7} {'LP s':>8} "
-          f"{'anal s':>7} {'its':>4} {'factor':>9} {'fill':>6} {'flops':>8} {'read s':>6} "
+          f"{'anal s':>7} {'its':>4} {'factor':>9} {'fill':>6} {'flops':>8} {'thr':>3} "
+          f"{'read s':>6} "
           f"{'margin':>6} {'Nc':>7} {'iso':>5} {'Newt s':>7} positive")
     rows = []
     for name, make in inputs:
@@ -165,7 +183,7 @@ def main() -> None:
         packing = tiled(packing, args.tile)
         for tolerance in args.tolerance:
             row = {"input": name, "tile": args.tile, "make_s": made,
-                   **one_lp(packing, tolerance, args.interior_point)}
+                   **one_lp(packing, tolerance, args.interior_point, args.threads)}
             print_row(row)
             rows.append(row)
     if args.json:

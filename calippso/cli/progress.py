@@ -14,8 +14,8 @@ STAGE_LABELS = {"lp": "LP", "cleanup": "clean-up LP", "newton": "Newton",
 
 
 class LPProgress:
-    """A tqdm bar over LPs showing the stage, √Γ − 1, max |s|, the contact count, the LP's rows
-    and its interior-point iterations.
+    """A tqdm bar over LPs showing the stage, √Γ − 1, max |s|, the contact count, the LP's
+    rows and its interior-point iterations.
 
     It is a `jam` callback, called once per history record. Only the records of LP stages
     (`LP_STAGES`) tick the bar, so that its count is the number of LPs the summary reports;
