@@ -75,6 +75,8 @@ def run_route(packing: calippso.Packing, route: str, limit: float) -> tuple[dict
            "displacement_median": result.displacement_median,
            "displacement_max": result.displacement_max, "contacts": result.n_contacts,
            "isostaticity_gap": result.isostaticity_gap, "force_balance": result.force_balance,
+           "relax_time": (seconds - float(result.history["wall_time"][-1])
+                          if route != "lp" and result.route == "relaxed" else 0.0),
            "notes": result.notes}
     return row, keys
 
@@ -93,7 +95,8 @@ def compare(packing: calippso.Packing, routes: list[str], limit: float) -> list[
 
 
 def format_row(row: dict) -> str:
-    return (f"{row['route']:8s} {row['wall_time']:8.1f} s {row['lps']:4d} LPs "
+    return (f"{row['route']:8s} {row['wall_time']:8.1f} s (relaxation {row['relax_time']:.1f} s) "
+            f"{row['lps']:4d} LPs "
             f"{'jammed' if row['converged'] else row['stop_reason']:>10s} "
             f"phi_J {row['phi_j']:.6f} (input {row['phi_input']:.6f}) "
             f"displacement median {row['displacement_median']:.1e} max "

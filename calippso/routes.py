@@ -178,7 +178,9 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
         return _bounded(_recorded(loop(packing, network, checkpoint), packing, "lp"),
                         max_displacement)
     limit = DEFAULT_MAX_DISPLACEMENT if max_displacement is None else max_displacement
+    relaxed_at = time.perf_counter()
     relaxation = _relax(packing, checkpoint)
+    relaxing = time.perf_counter() - relaxed_at
     moved = relaxation.extra["max_displacement"]
     if moved > limit:
         message = (f"the relaxed route moved a particle by {moved:.3g} mean diameters, more "
@@ -194,6 +196,8 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
     result = _recorded(loop(relaxation.packing, hint, checkpoint), packing, "relaxed")
     if reason is not None:
         result.notes.append(f"route 'auto' took the relaxed route: {reason}")
+    result.notes.append(f"the soft-sphere relaxation took {relaxing:.1f} s "
+                        f"({relaxation.steps} minimiser steps, {relaxation.extra['minimiser']})")
     words = _in_words(result, relaxation.extra, reason)
     result = replace(result, status=f"{result.status} {words}",
                      wall_time=time.perf_counter() - started)
