@@ -93,7 +93,8 @@ def test_periodic_kagome_twists_open():
     # In a periodic box the kagome is only locally jammed: its triangles twist, a motion
     # that keeps every contact closed to first order in the fixed box (the strain-free
     # twist of the twisted kagome lattice, Sun, Souslov, Mao & Lubensky, PNAS 109, 12369
-    # (2012)). Classifications that list it as collectively jammed hold it with walls.
+    # (2012)). Lists of jammed lattices call it collectively but not strictly jammed
+    # (Torquato & Stillinger, J. Phys. Chem. B 105, 11849 (2001)); not in a periodic box.
     # The first-order motion is a real one: moving along it by t changes every contact
     # distance by t²|Δr_j − Δr_i|²/(2|r_ij|) ≥ 0, checked here on every pair.
     packing = lattices.kagome(2)
