@@ -147,7 +147,8 @@ class JammingCategory:
         The witness of the first class that failed: an unjamming motion of the stable
         particles (zeros on rattlers; in mean diameters per unit motion, largest component 1
         with the strain), with the trivial motions projected out; None when the packing is
-        strictly jammed. For the local class only one particle moves.
+        strictly jammed (or the test stopped at `up_to`). For the local class only one
+        particle moves.
     strain : ndarray, shape (d, d), or None
         The box's symmetric strain in the witness of the strict test (zero outside the
         periodic axes); None when the witness is not from the strict test.
@@ -247,17 +248,17 @@ def jamming_category(packing_or_result, *, contact_tolerance: float | None = Non
     """The jamming category of a packing: "not jammed", "local", "collective" or "strict".
 
     The linear test of Donev, Torquato, Stillinger & Connelly (J. Comput. Phys. 197, 139
-    (2004)) on the contact network with its rattlers removed, each class decided by an LP of
-    the opening rates (its zero optimum gives a positive self-stress as certificate) and an
-    LP of a random objective over the floppy motions (see the module's docstring and
-    docs/categories.md).
+    (2004)) on the contact network with its rattlers removed: a class holds when a
+    self-stress with every force positive exists (the certificate) and no floppy mode is
+    left; otherwise a witness motion is returned (the module's docstring says how each
+    class is decided; docs/categories.md).
 
     Parameters
     ----------
     packing_or_result : Packing or JammingResult
         A periodic packing, or one in a container with at least one periodic axis (the
         strict test strains the periodic axes; the walls stay). A `JammingResult` brings its
-        contacts and wall contacts.
+        contacts, wall contacts and forces.
     contact_tolerance : float, optional
         Pairs (and particle–wall pairs) with a relative gap at most this are contacts.
         Default: the contacts of a `JammingResult`, `DEFAULT_CONTACT_TOLERANCE` for a
