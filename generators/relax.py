@@ -57,8 +57,7 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
         a cylinder). It may overlap (soft spheres): the first minimisation removes the
         overlaps above the start pressure.
     start_pressure : float
-        Pressure of the first minimisation, ε / (mean diameter)^d (default 1e-4). A higher
-        one rearranges the packing more and moves it further from the input.
+        Pressure of the first minimisation, ε / (mean diameter)^d (default 1e-4).
     target_pressure : float, optional
         The last minimum has half this pressure. Default: `default_target_pressure` (as
         `soft_quench`).
