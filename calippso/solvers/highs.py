@@ -5,10 +5,7 @@ IPX otherwise), the centre of the optimal face, read by `calippso.complementarit
 
 from __future__ import annotations
 
-import contextlib
 import functools
-import os
-import sys
 import time
 from dataclasses import dataclass
 from importlib.metadata import version
@@ -16,6 +13,7 @@ from importlib.metadata import version
 import highspy
 import numpy as np
 
+from ..c_stdout import c_stdout_to_devnull
 from ..errors import SolverError
 from ..lp import LinearProgram
 from ..settings import JamSettings
@@ -101,29 +99,11 @@ def _quiet_highs() -> highspy.Highs:
     if _banner_silenced:
         highs = highspy.Highs()
     else:
-        with _stdout_to_devnull():
+        with c_stdout_to_devnull():
             highs = highspy.Highs()
         _banner_silenced = True
     highs.setOptionValue("output_flag", False)
     return highs
-
-
-@contextlib.contextmanager
-def _stdout_to_devnull():
-    """Point file descriptor 1 at the null device for the duration (no-op without one)."""
-    try:
-        sys.stdout.flush()
-        saved = os.dup(1)
-    except (OSError, ValueError, AttributeError):
-        yield
-        return
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-        yield
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
 
 
 def _set_interior_point(highs: highspy.Highs, name: str) -> None:
