@@ -15,8 +15,11 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+import calippso
 from calippso.c_stdout import c_stdout_to_devnull, c_stdout_to_stderr
 from calippso.sparse_lu import factorize
+from configurations import overlap_free
+from conftest import OVERLAP_TOLERANCE
 
 #: A sparse matrix of this size and seed, its first `DEPENDENT` columns sums of two others,
 #: reaches the BLAS error handler inside SuperLU (found by a scan of seeds).
@@ -81,3 +84,9 @@ def test_jam_json_parses_on_degenerate_inputs(case, tmp_path, capfd):
     out, _ = capfd.readouterr()
     record = json.loads(out)
     assert record["n"] == start.n
+    # the record says what the run proved: "Jammed" exactly when converged, and a converged
+    # packing overlaps nowhere
+    assert record["converged"] == record["status"].startswith("Jammed")
+    if record["converged"]:
+        result = calippso.load_result(tmp_path / "jammed.npz")
+        assert overlap_free(result.packing) >= -OVERLAP_TOLERANCE

@@ -11,6 +11,7 @@ import numpy as np
 
 from calippso.neighbors import NeighborSearch
 from calippso.stages.finish import _unjamming_motion
+from calippso.touching import touching_outside_network
 
 import lattices
 
@@ -22,23 +23,28 @@ def _touching(packing):
     return np.column_stack([close.i, close.j]).astype(np.int64)
 
 
+def _check(packing, contacts):
+    """`_unjamming_motion` on a periodic packing without rattlers."""
+    no_walls = np.zeros((0, 2), np.int64)
+    rattlers = np.zeros(packing.n, dtype=bool)
+    touching = touching_outside_network(packing, contacts, rattlers, no_walls)
+    return _unjamming_motion(packing, contacts, no_walls, rattlers, touching)
+
+
 def test_sliding_rows_are_an_unjamming_motion():
     """The square lattice of discs at contact counts 2N contacts, one more than isostatic,
     yet its rows slide (Torquato & Stillinger, Rev. Mod. Phys. 82, 2633 (2010), Table I)."""
     square = lattices.square(8)
     contacts = _touching(square)
     assert len(contacts) == 2 * square.n               # hyperstatic by count
-    why, undecided = _unjamming_motion(square, contacts, np.zeros((0, 2), np.int64),
-                                       np.zeros(square.n, dtype=bool))
+    why, undecided = _check(square, contacts)
     assert undecided is None
     assert why is not None and "not rigid" in why
 
 
 def test_a_jammed_lattice_passes():
     triangular = lattices.triangular(6)
-    why, undecided = _unjamming_motion(triangular, _touching(triangular),
-                                       np.zeros((0, 2), np.int64),
-                                       np.zeros(triangular.n, dtype=bool))
+    why, undecided = _check(triangular, _touching(triangular))
     assert why is None and undecided is None
 
 
@@ -47,6 +53,5 @@ def test_touching_pairs_outside_the_network_count_as_constraints():
     the pairs that touch outside the network hold it too."""
     triangular = lattices.triangular(6)
     contacts = _touching(triangular)
-    why, _ = _unjamming_motion(triangular, contacts[::2], np.zeros((0, 2), np.int64),
-                               np.zeros(triangular.n, dtype=bool))
+    why, _ = _check(triangular, contacts[::2])
     assert why is None

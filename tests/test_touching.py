@@ -128,3 +128,7 @@ def test_jam_loses_no_touching_pair(touching_result):
     reported = {tuple(p) for p in again.touching_pairs.tolist()}
     contacts = {tuple(p) for p in again.contacts.tolist()}
     assert {tuple(p) for p in everything.pairs.tolist()} == reported | contacts
+    if reported:   # the verdict itself says how the count changes
+        assert (f"{len(reported)} more pair(s) touch outside the network with zero force"
+                in again.status)
+        assert f"would be {again.isostaticity_gap + len(reported):+d}" in again.status

@@ -20,6 +20,7 @@ from ..network import (ContactNetwork, network_balance, polished_forces,
 from ..newton import pinned_coordinates
 from ..packing import Packing
 from ..result import JammingResult
+from ..touching import TOUCHING_GAP, Touching, touching_outside_network
 from .lp_step import record_lp, solve_lp
 from .newton_stage import newton
 from .state import LoopState, Run
@@ -86,14 +87,22 @@ def finish(run: Run, state: LoopState, network: ContactNetwork,
         run.history.note(f"not a certified jamming point: the LPs converged between walls "
                          f"with a hypostatic network (gap {gap:+d}), a floppy mode that "
                          f"moving particles out of their layers did not remove")
+    final = run.packing(state)
+    touching = touching_outside_network(final, contacts[order], network.rattlers,
+                                        wall_contacts[wall_order])
+    if len(touching) and network.n_stable > 0:
+        # the verdict says how the count changes when they are counted as contacts
+        run.history.note(f"{len(touching)} more pair(s) touch outside the network with zero "
+                         f"force (relative gap <= {TOUCHING_GAP:g}): counted as contacts, "
+                         f"the isostaticity gap would be {gap + len(touching):+d}")
     if reason is StopReason.CONVERGED:
         # the tolerances were met; is a rigid network holding the packing? Not when none is
         # left or it is hypostatic, nor when the linear test finds an unjamming motion
         unjamming = None
         if network.n_stable > 0 and gap >= 0 and not certified:
             unjamming, undecided = _unjamming_motion(
-                run.packing(state), contacts[order], wall_contacts[wall_order],
-                network.rattlers)
+                final, contacts[order], wall_contacts[wall_order], network.rattlers,
+                touching)
             _note(run, unjamming)
             _note(run, undecided)
         if network.n_stable == 0 or gap < 0 or unjamming is not None:
@@ -101,7 +110,7 @@ def finish(run: Run, state: LoopState, network: ContactNetwork,
     notes = _final_notes(run, reason)
     history = run.history
     return JammingResult(
-        packing=run.packing(state), contacts=contacts[order], forces=forces / mean_force,
+        packing=final, contacts=contacts[order], forces=forces / mean_force,
         wall_contacts=wall_contacts[wall_order], wall_forces=wall_forces / mean_force,
         rattlers=network.rattlers.copy(), converged=converged,
         status=status_sentence(reason, history.lps_solved, history.last_step(),
@@ -128,19 +137,18 @@ def _cleanup(run: Run, state: LoopState,
 
 
 def _unjamming_motion(packing: Packing, contacts: np.ndarray, wall_contacts: np.ndarray,
-                      rattlers: np.ndarray) -> tuple[str | None, str | None]:
+                      rattlers: np.ndarray, touching: Touching
+                      ) -> tuple[str | None, str | None]:
     """Why the packing is not collectively jammed (None when it is), and a note when the
     test could not decide (its LP failed: the run keeps its reason, unverified).
 
     The linear test of `calippso.categories` (collective class) on the network's contacts
-    and every other pair that touches (`calippso.touching`): a motion that keeps every
+    and every other pair that touches (`touching`, `calippso.touching`): a motion that keeps every
     touching pair from overlapping to first order and moves stable particles is an
     unjamming motion, and the packing is not rigid whatever its contact count.
     """
     from ..categories import jamming_category
-    from ..touching import touching_outside_network
 
-    touching = touching_outside_network(packing, contacts, rattlers, wall_contacts)
     every = JammingResult(
         packing=packing, contacts=np.concatenate([contacts, touching.pairs]),
         forces=np.zeros(0), rattlers=rattlers, converged=False, status="", iterations=0,
