@@ -37,6 +37,9 @@ def as_packing(packing: Packing | np.ndarray, diameters=None, box=None) -> Packi
     if isinstance(packing, Packing):
         if diameters is not None or box is not None:
             raise TypeError("pass either a Packing, or positions with diameters and box")
+        if packing.box_matrix is not None:
+            raise ValueError("this packing's box is sheared (box_matrix): jam it with "
+                             "box='deformable'; the fixed-box loop needs a rectangular box")
         return packing
     if diameters is None or box is None:
         raise TypeError("jam(positions, diameters, box): diameters and box are required")

@@ -15,7 +15,8 @@ from math import gamma, pi
 import numpy as np
 
 from .boundaries import Boundaries
-from .periodic import minimum_image, wrap
+from .periodic import (lattice_minimum_image, lattice_wrap, minimum_image,
+                       shortest_lattice_vector, triangular_box, wrap)
 
 __all__ = ["Packing", "Boundaries", "ball_volume", "minimum_image", "wrap", "packing_of",
            "packing_arrays"]
@@ -55,7 +56,8 @@ def _as_float_array(value, name: str, ndim: int) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Packing:
-    """Hard (hyper)spheres in a rectangular box, periodic or closed by walls.
+    """Hard (hyper)spheres in a rectangular box, periodic or closed by walls, or in a
+    sheared periodic box.
 
     Parameters
     ----------
@@ -69,6 +71,10 @@ class Packing:
         Box side lengths L_μ > 0 (a scalar means a cubic box).
     boundaries : Boundaries, optional
         How each axis is closed (`calippso.boundaries`); default: periodic along every axis.
+    box_matrix : array_like, shape (d, d), optional
+        A sheared periodic box: the box vectors as columns, upper triangular with the
+        diagonal equal to `box` (`Packing.sheared` builds it from any box matrix). None (the
+        default) is the rectangular box diag(`box`); a diagonal matrix is stored as None.
 
     Raises
     ------
@@ -76,7 +82,8 @@ class Packing:
         On wrong shapes, non-finite values, non-positive diameters or box sides, d < 2, an
         empty packing, a particle wider than half the smallest periodic box side (the
         minimum-image convention could then miss contacts), boundaries of another dimension,
-        or a particle outside its container (`Boundaries.check`).
+        or a particle outside its container (`Boundaries.check`); a box matrix that is not
+        upper triangular with `box` on its diagonal, or one with walls.
 
     Notes
     -----
@@ -88,6 +95,7 @@ class Packing:
     diameters: np.ndarray
     box: np.ndarray
     boundaries: Boundaries | None = None
+    box_matrix: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         positions = _as_float_array(self.positions, "positions", 2)
@@ -120,8 +128,17 @@ class Packing:
         if boundaries.d != d:
             raise ValueError(f"boundaries have {boundaries.d} axes but positions are "
                              f"{d}-dimensional")
+        box_matrix = self._checked_box_matrix(box, boundaries)
+        object.__setattr__(self, "box_matrix", box_matrix)
         periodic_box = box[boundaries.periodic]
-        if periodic_box.size and diameters.max() >= 0.5 * periodic_box.min():
+        if box_matrix is not None:
+            shortest = shortest_lattice_vector(box_matrix)
+            if diameters.max() >= 0.5 * shortest:
+                raise ValueError(
+                    f"box too small: the largest diameter {diameters.max():g} is not below "
+                    f"half the shortest box vector {shortest:g} of the sheared box; the "
+                    f"periodic images would interact")
+        elif periodic_box.size and diameters.max() >= 0.5 * periodic_box.min():
             raise ValueError(
                 f"box too small: the largest diameter {diameters.max():g} is not below half the "
                 f"smallest box side {periodic_box.min():g} of a periodic axis; the periodic "
@@ -133,6 +150,74 @@ class Packing:
         for name, array in (("positions", positions), ("diameters", diameters), ("box", box)):
             array.setflags(write=False)
             object.__setattr__(self, name, array)
+
+    def _checked_box_matrix(self, box: np.ndarray, boundaries: Boundaries) -> np.ndarray | None:
+        """The box matrix as a read-only array, or None for a rectangular box."""
+        if self.box_matrix is None:
+            return None
+        d = box.shape[0]
+        matrix = _as_float_array(self.box_matrix, "box_matrix", 2)
+        if matrix.shape != (d, d):
+            raise ValueError(f"box_matrix must have shape ({d}, {d}), got {matrix.shape}")
+        if not boundaries.is_periodic:
+            raise ValueError("a sheared box (box_matrix) is periodic along every axis; "
+                             "walls and cylinders need a rectangular box")
+        if np.any(np.tril(matrix, -1) != 0.0):
+            raise ValueError("box_matrix must be upper triangular (box vectors as columns); "
+                             "Packing.sheared rotates any box matrix into that form")
+        if not np.allclose(np.diag(matrix), box, rtol=1e-12, atol=0.0):
+            raise ValueError(f"the diagonal of box_matrix {np.diag(matrix).tolist()} differs "
+                             f"from box {box.tolist()}")
+        if not np.any(np.triu(matrix, 1)):
+            return None
+        matrix.setflags(write=False)
+        return matrix
+
+    @classmethod
+    def sheared(cls, positions, diameters, matrix) -> "Packing":
+        """A packing in a sheared periodic box given by any box matrix.
+
+        Parameters
+        ----------
+        positions : array_like, shape (N, d)
+            Centres in the frame of `matrix` (length units).
+        diameters : array_like, shape (N,)
+        matrix : array_like, shape (d, d)
+            Box vectors as columns, det > 0 (length units).
+
+        Returns
+        -------
+        Packing
+            The same packing rotated so that its box matrix is upper triangular with a
+            positive diagonal (`calippso.periodic.triangular_box`); a rectangular box when
+            the box vectors are orthogonal and along the axes.
+        """
+        matrix = _as_float_array(matrix, "box matrix", 2)
+        if matrix.shape[0] != matrix.shape[1] or np.linalg.det(matrix) <= 0:
+            raise ValueError(f"the box matrix must be square with det > 0, got shape "
+                             f"{matrix.shape}")
+        triangular, rotation = triangular_box(matrix)
+        triangular = np.triu(triangular)
+        rotated = np.asarray(positions, dtype=np.float64) @ rotation
+        return cls(rotated, diameters, np.diag(triangular).copy(), None, triangular)
+
+    @property
+    def is_sheared(self) -> bool:
+        """Whether the box is sheared (`box_matrix` is not None)."""
+        return self.box_matrix is not None
+
+    @property
+    def lattice(self) -> np.ndarray:
+        """The box matrix, box vectors as columns, shape (d, d): diag(`box`) for a
+        rectangular box."""
+        return np.diag(self.box) if self.box_matrix is None else self.box_matrix
+
+    def minimum_image(self, delta: np.ndarray) -> np.ndarray:
+        """The minimum image of separations, shape (..., d), in this box (sheared or not)."""
+        if self.box_matrix is not None:
+            return lattice_minimum_image(delta, self.box_matrix)
+        periodic = self.periodic
+        return minimum_image(delta, self.box, None if periodic.all() else periodic)
 
     @property
     def n(self) -> int:
@@ -168,6 +253,9 @@ class Packing:
 
     def wrapped(self) -> "Packing":
         """The same packing with every periodic coordinate inside [0, L)."""
+        if self.box_matrix is not None:
+            return Packing(lattice_wrap(self.positions, self.box_matrix), self.diameters,
+                           self.box, self.boundaries, self.box_matrix)
         return Packing(wrap(self.positions, self.box, self.periodic), self.diameters, self.box,
                        self.boundaries)
 
@@ -176,30 +264,39 @@ class Packing:
         if not phi > 0:
             raise ValueError(f"phi must be > 0, got {phi}")
         factor = (phi / self.phi) ** (1.0 / self.d)
-        return Packing(self.positions, self.diameters * factor, self.box, self.boundaries)
+        return Packing(self.positions, self.diameters * factor, self.box, self.boundaries,
+                       self.box_matrix)
 
     def __repr__(self) -> str:
         polydisperse = np.ptp(self.diameters) > 1e-12 * self.diameters.max()
         kind = "polydisperse" if polydisperse else "monodisperse"
         walls = "" if self.boundaries.is_periodic else f", {self.boundaries.describe()}"
+        if self.box_matrix is not None:
+            walls = f", sheared box_matrix={self.box_matrix.tolist()}"
         return (f"Packing(n={self.n}, d={self.d}, phi={self.phi:.6f}, {kind}, "
                 f"box={self.box.tolist()}{walls})")
 
 
 def packing_of(arrays) -> Packing:
     """The `Packing` held by a mapping of arrays (our `.npz` and HDF5 keys): positions,
-    diameters, box, and the "boundaries" string when the box has walls."""
+    diameters, box, the "boundaries" string when the box has walls, and "box_matrix" when
+    it is sheared."""
     boundaries = (Boundaries.from_text(str(np.asarray(arrays["boundaries"])[()]))
                   if "boundaries" in arrays else None)
-    return Packing(arrays["positions"], arrays["diameters"], arrays["box"], boundaries)
+    box_matrix = arrays["box_matrix"] if "box_matrix" in arrays else None
+    return Packing(arrays["positions"], arrays["diameters"], arrays["box"], boundaries,
+                   box_matrix)
 
 
 def packing_arrays(packing: Packing) -> dict[str, np.ndarray]:
     """The arrays of a `Packing` in our `.npz` and HDF5 files: positions, diameters, box,
-    and "boundaries" (the kind of every axis, e.g. "walls periodic") only when the box is not
-    periodic, so that a periodic file is what it always was."""
+    "boundaries" (the kind of every axis, e.g. "walls periodic") only when the box is not
+    periodic, and "box_matrix" (box vectors as columns) only when it is sheared, so that a
+    rectangular periodic file is what it always was."""
     arrays = {"positions": packing.positions, "diameters": packing.diameters,
               "box": packing.box}
     if not packing.boundaries.is_periodic:
         arrays["boundaries"] = np.array(str(packing.boundaries))
+    if packing.box_matrix is not None:
+        arrays["box_matrix"] = packing.box_matrix
     return arrays

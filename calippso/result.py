@@ -342,6 +342,8 @@ class JammingResult:
             "displacement_max": np.array(self.displacement_max),
             "displacement_median": np.array(self.displacement_median),
         }
+        if self.packing.box_matrix is not None:
+            arrays["box_matrix"] = self.packing.box_matrix
         if not self.packing.boundaries.is_periodic:
             arrays.update(boundaries=np.array(str(self.packing.boundaries)),
                           wall_contacts=self.wall_contacts, wall_forces=self.wall_forces)

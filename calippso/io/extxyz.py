@@ -30,6 +30,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..boundaries import PERIODIC, WALLS, Boundaries
 from ..packing import Packing
+from .sheared import refuse_sheared
 
 __all__ = ["column_names", "read", "read_rattlers", "write"]
 
@@ -45,6 +46,7 @@ def write(obj, path: Path) -> Path:
     ValueError
         If d > 3 (extended XYZ holds three coordinates; use .npz or .h5).
     """
+    refuse_sheared(getattr(obj, "packing", obj), "extended XYZ")
     packing = getattr(obj, "packing", obj).wrapped()
     if packing.d > 3:
         raise ValueError(

@@ -20,6 +20,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..boundaries import KINDS, Boundaries
 from ..packing import Packing
+from .sheared import refuse_sheared
 
 __all__ = ["read", "write"]
 
@@ -43,6 +44,7 @@ def write(obj, path: Path) -> Path:
         If d > 3 (HOOMD boxes are 2D or 3D; use .npz or .h5), or gsd is not installed.
     """
     hoomd = _gsd_hoomd()
+    refuse_sheared(getattr(obj, "packing", obj), "GSD")
     packing = getattr(obj, "packing", obj).wrapped()
     if packing.d > 3:
         raise ValueError(

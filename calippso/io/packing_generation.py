@@ -25,6 +25,7 @@ import numpy as np
 
 from ..boundaries import Boundaries
 from ..packing import Packing
+from .sheared import refuse_sheared
 
 #: PackingGeneration's "Boundaries mode:" values and what each means.
 BOUNDARIES_MODES = {1: "periodic in x, y and z",
@@ -111,6 +112,7 @@ def write(packing: Packing, path: Path) -> Path:
     The conf's "Boundaries mode:" is 1 for a periodic packing, 2 for a cylinder in xy and 3
     for walls in x and y, z periodic in both; other containers are refused.
     """
+    refuse_sheared(packing, "PackingGeneration")
     if packing.d != 3:
         raise ValueError(f"PackingGeneration files hold d = 3 only, this packing has d = {packing.d}")
     if packing.boundaries.is_periodic:

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..packing import Packing
+from .sheared import refuse_sheared
 
 
 def _numbers(line: str, path: Path, number: int, kind=float) -> list:
@@ -94,6 +95,7 @@ def write(packing: Packing, path: Path) -> Path:
     float64 positions exact. A box with walls is refused (the format's flags are written
     "T" for every axis).
     """
+    refuse_sheared(packing, "Skoge-Donev files")
     if not packing.boundaries.is_periodic:
         raise ValueError(f"Skoge-Donev files hold periodic packings here, this one has "
                          f"{packing.boundaries.describe()}: write .npz, .h5 or .xyz instead")
