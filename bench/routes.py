@@ -13,7 +13,8 @@ in ``--cache`` so that both routes and later runs jam the same packing.
     python bench/routes.py --make ls --n 1024 --d 5 --routes relaxed
 
 A route that has not finished after ``--lp-limit`` seconds is stopped after its current LP
-(the row then says so).
+(the row then says so); a route that `jam` refuses (``max_displacement``) gives a row with
+the refusal.
 """
 
 from __future__ import annotations
@@ -63,10 +64,19 @@ def time_limit(seconds: float):
     return lambda record: time.perf_counter() - started > seconds
 
 
-def run_route(packing: calippso.Packing, route: str, limit: float) -> tuple[dict, np.ndarray]:
-    """One route's row and its contact keys (i·N + j, sorted)."""
+def run_route(packing: calippso.Packing, route: str, limit: float,
+              max_displacement: float | None = None) -> tuple[dict, np.ndarray]:
+    """One route's row and its contact keys (i·N + j, sorted); a route that `jam` refuses
+    (it moved a particle further than its `max_displacement`, passed to the relaxed and auto
+    routes; None: `jam`'s default) gives a row saying so."""
+    bound = {} if route == "lp" or max_displacement is None else \
+        {"max_displacement": max_displacement}
     started = time.perf_counter()
-    result = calippso.jam(packing, route=route, callback=time_limit(limit))
+    try:
+        result = calippso.jam(packing, route=route, callback=time_limit(limit), **bound)
+    except calippso.JammingError as error:
+        return {"route": route, "wall_time": time.perf_counter() - started, "refused": str(error),
+                "phi_input": packing.phi}, np.zeros(0, np.int64)
     seconds = time.perf_counter() - started
     keys = np.sort(result.contacts[:, 0] * packing.n + result.contacts[:, 1])
     row = {"route": route, "wall_time": seconds, "lps": result.iterations,
@@ -81,11 +91,12 @@ def run_route(packing: calippso.Packing, route: str, limit: float) -> tuple[dict
     return row, keys
 
 
-def compare(packing: calippso.Packing, routes: list[str], limit: float) -> list[dict]:
+def compare(packing: calippso.Packing, routes: list[str], limit: float,
+            max_displacement: float | None = None) -> list[dict]:
     """Rows of every route, with the contacts each shares with the first route's."""
     rows, keys = [], []
     for route in routes:
-        row, contacts = run_route(packing, route, limit)
+        row, contacts = run_route(packing, route, limit, max_displacement)
         rows.append(row)
         keys.append(contacts)
         print(format_row(row), flush=True)
@@ -95,6 +106,8 @@ def compare(packing: calippso.Packing, routes: list[str], limit: float) -> list[
 
 
 def format_row(row: dict) -> str:
+    if "refused" in row:
+        return f"{row['route']:8s} {row['wall_time']:8.1f} s  refused: {row['refused']}"
     return (f"{row['route']:8s} {row['wall_time']:8.1f} s (relaxation {row['relax_time']:.1f} s) "
             f"{row['lps']:4d} LPs "
             f"{'jammed' if row['converged'] else row['stop_reason']:>10s} "
@@ -117,6 +130,9 @@ def main() -> None:
                         choices=("lp", "relaxed", "auto"))
     parser.add_argument("--lp-limit", type=float, default=900.0,
                         help="stop a route after its LP that passes this many seconds")
+    parser.add_argument("--max-displacement", type=float, default=None,
+                        help="max_displacement of the relaxed and auto routes (mean "
+                             "diameters; default: jam's)")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = parser.parse_args()
     if args.input is not None:
@@ -133,9 +149,9 @@ def main() -> None:
     print(f"{name}: N = {packing.n}, d = {packing.d}, phi = {packing.phi:.6f}; {near} pairs "
           f"near contact, gaps spread over {spread:.1f} decades; route 'auto': "
           f"{'relaxed, ' + prediction if prediction else 'lp'}", flush=True)
-    rows = compare(packing, args.routes, args.lp_limit)
+    rows = compare(packing, args.routes, args.lp_limit, args.max_displacement)
     print("shared contacts with the first route: "
-          + ", ".join(f"{row['route']} {row['shared_contacts']}/{row['contacts']}"
+          + ", ".join(f"{row['route']} {row['shared_contacts']}/{row.get('contacts', 0)}"
                       for row in rows))
     if args.json is not None:
         args.json.write_text(json.dumps({"input": name, "n": packing.n, "d": packing.d,
