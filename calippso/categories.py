@@ -73,6 +73,7 @@ import scipy.sparse as sp
 from .neighbors import NeighborSearch
 from .packing import Packing, minimum_image
 from .rattlers import remove_rattlers
+from .sheared_search import sheared_pairs_within
 from .walls import wall_rows_of, wall_rows_within
 
 __all__ = ["jamming_category", "JammingCategory", "ClassTest", "CATEGORIES", "CLASSES",
@@ -336,8 +337,12 @@ def _contacts_within(packing: Packing, tolerance: float) -> tuple[np.ndarray, np
     that are not rattlers when every pair within the window is taken as a contact."""
     reach = 1.0 + AMBIGUITY_WINDOW * tolerance
     periodic = None if packing.boundaries.is_periodic else packing.periodic
-    search = NeighborSearch(packing.positions, packing.diameters, packing.box, periodic)
-    near = search.pairs_within(float(packing.diameters.max()) * reach)
+    if packing.box_matrix is not None:   # a sheared box
+        near = sheared_pairs_within(packing.positions, packing.diameters, packing.box_matrix,
+                                    float(packing.diameters.max()) * reach)
+    else:
+        search = NeighborSearch(packing.positions, packing.diameters, packing.box, periodic)
+        near = search.pairs_within(float(packing.diameters.max()) * reach)
     gaps = near.gaps
     close = gaps <= AMBIGUITY_WINDOW * tolerance
     if periodic is None:
@@ -386,7 +391,9 @@ def _network(packing: Packing, pairs: np.ndarray, walls: np.ndarray,
     column[stable] = d * np.arange(stable.size)
     i, j = pairs[:, 0], pairs[:, 1]
     periodic = None if packing.boundaries.is_periodic else packing.periodic
-    vectors = minimum_image(packing.positions[j] - packing.positions[i], packing.box, periodic)
+    vectors = (packing.minimum_image(packing.positions[j] - packing.positions[i])
+               if packing.box_matrix is not None else
+               minimum_image(packing.positions[j] - packing.positions[i], packing.box, periodic))
     normals = vectors / np.linalg.norm(vectors, axis=1)[:, None]
     boundaries = packing.boundaries
     rows = wall_rows_of(packing.positions, packing.diameters, packing.box, walls[:, 0],

@@ -57,6 +57,8 @@ __all__ = ["jam", "initial_step_bound", "next_step_bound"]
 #: `check_box_size` stops a run whose largest diameter reaches (1 − this) × half the box
 #: side with no stable particle.
 SMALL_BOX_MARGIN = 1e-3
+#: What `jam(..., box=...)` accepts as a string: the box stays, or deforms with the LPs.
+BOX_MODES = ("fixed", "deformable")
 #: Smallest first bound on displacements chosen by `initial_step_bound` (mean diameters).
 INITIAL_STEP_FLOOR = 1e-3
 
@@ -75,8 +77,12 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         The configuration, or its positions (then pass `diameters` and `box` too).
     diameters : array_like, shape (N,), optional
         Diameters, when `packing` is an array of positions.
-    box : array_like, shape (d,) or float, optional
-        Box side lengths, when `packing` is an array of positions.
+    box : array_like, shape (d,) or float, or {"fixed", "deformable"}, optional
+        Box side lengths, when `packing` is an array of positions. Or, as a string, what the
+        box does: "fixed" (default) keeps it as given; "deformable" puts the box's strain
+        in every LP (volume not growing), towards a strictly jammed packing
+        (`calippso.deformable`: the LP loop alone, periodic boxes, rectangular or sheared
+        input; the result holds the final box matrix and the stress tensor).
     solver : {"highs", "clarabel", "cvxpy"} or str
         LP backend. "highs" (interior point + crossover) gives vertex solutions whose duals
         identify contacts exactly; the others are interior-point solvers at tight tolerances.
@@ -149,6 +155,14 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     """
     settings = JamSettings.from_options(solver=solver, tol_gamma=tol_gamma, tol_s=tol_s,
                                         max_iters=max_iters, verbose=verbose, **options)
+    box_mode = "fixed"
+    if isinstance(box, str):
+        box_mode, box = box, None
+        if box_mode not in BOX_MODES:
+            raise ValueError(f"unknown box {box_mode!r}: choose one of {', '.join(BOX_MODES)}")
+    if box_mode == "deformable":
+        return _jam_deformable(packing, diameters, settings, callback, checkpoint, network,
+                               on_lp, route)
     packing = as_packing(packing, diameters, box)
     check_enough_particles(packing.n, packing.d)
 
@@ -160,6 +174,26 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         return _run(run, state, saver, hint)
 
     return jam_by_route(packing, route, max_displacement, network, checkpoint, loop)
+
+
+def _jam_deformable(packing, diameters, settings: JamSettings, callback, checkpoint, network,
+                    on_lp, route: str) -> JammingResult:
+    """`jam(..., box="deformable")`: the checks, then `calippso.deformable.jam_deformable`."""
+    from .deformable import jam_deformable
+
+    unsupported = [name for name, value in (("checkpoint", checkpoint), ("network", network),
+                                            ("on_lp", on_lp)) if value is not None]
+    if route != "lp":
+        unsupported.append(f"route={route!r}")
+    if unsupported:
+        raise ValueError(f"box='deformable' runs the LP loop alone; it does not take "
+                         f"{', '.join(unsupported)}")
+    if not isinstance(packing, Packing):
+        if diameters is None:
+            raise TypeError("jam(positions, diameters, box=...) needs the box sides: pass a "
+                            "Packing with box='deformable'")
+    check_enough_particles(packing.n, packing.d)
+    return jam_deformable(packing, settings, callback)
 
 
 def initial_step_bound(gap: float, settings: JamSettings) -> float:

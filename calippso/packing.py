@@ -22,6 +22,11 @@ __all__ = ["Packing", "Boundaries", "ball_volume", "minimum_image", "wrap", "pac
            "packing_arrays"]
 
 
+#: `Packing.sheared` sets a tilt below this fraction of the largest box side to zero (the
+#: round-off of rotating the box matrix into upper-triangular form).
+SHEAR_ROUNDOFF = 1e-14
+
+
 def ball_volume(d: int, radius: np.ndarray | float) -> np.ndarray | float:
     """Volume of a d-dimensional ball, V_d(r) = π^{d/2} r^d / Γ(d/2 + 1).
 
@@ -198,6 +203,9 @@ class Packing:
                              f"{matrix.shape}")
         triangular, rotation = triangular_box(matrix)
         triangular = np.triu(triangular)
+        # tilts at the round-off of the rotation are no shear
+        roundoff = np.triu(np.abs(triangular) < SHEAR_ROUNDOFF * np.diag(triangular).max(), 1)
+        triangular[roundoff] = 0.0
         rotated = np.asarray(positions, dtype=np.float64) @ rotation
         return cls(rotated, diameters, np.diag(triangular).copy(), None, triangular)
 

@@ -27,6 +27,15 @@ displacement_median         () float64       median distance (both in mean input
 history_<column>            (records,)       one entry per stage, see `HISTORY_COLUMNS`
 ==========================  ===============  ===============================================
 
+A run with a deformable box (``jam(..., box="deformable")``) adds, and a sheared box adds
+``box_matrix``:
+
+==========================  ===============  ===============================================
+box_mode                    () str           "deformable" (absent: "fixed")
+stress                      (d, d) float64   contact stress Σ f |r| n nᵀ / V
+box_matrix                  (d, d) float64   box vectors as columns, upper triangular
+==========================  ===============  ===============================================
+
 A packing with walls (`calippso.boundaries`) adds three keys; a periodic one has none of
 them, and a file without them is periodic:
 
@@ -124,6 +133,13 @@ class JammingResult:
         Largest and median distance of a particle from its place in the input (minimum
         image, the common translation along periodic axes taken out), in mean diameters of
         the input; NaN when not known.
+    box_mode : str
+        "fixed" (the box stayed as given) or "deformable" (`calippso.deformable`: the box's
+        strain was in every LP; `isostatic` then counts strictly, docs/theory.md).
+    stress : ndarray, shape (d, d), or None
+        The contact stress tensor Σ_k f_k |r_k| n_k n_kᵀ / V (forces of mean 1, per unit
+        volume of the caller's length units); set by deformable runs, None otherwise.
+        Isotropic at a strictly jammed point (`stress_anisotropy`).
     """
 
     packing: Packing
@@ -146,6 +162,8 @@ class JammingResult:
     phi_input: float = float("nan")
     displacement_max: float = float("nan")
     displacement_median: float = float("nan")
+    box_mode: str = "fixed"
+    stress: np.ndarray | None = None
 
     @property
     def d(self) -> int:
@@ -184,12 +202,15 @@ class JammingResult:
         the periodic axes with walls (`Boundaries.zero_modes`)."""
         from .contacts import isostaticity_gap
 
-        return isostaticity_gap(self.n_contacts, self.n_stable, self.d,
-                                self.packing.boundaries.zero_modes)
+        zero_modes = self.packing.boundaries.zero_modes
+        if self.box_mode == "deformable":
+            zero_modes -= self.d * (self.d + 1) // 2 - 1   # the box's shape, at fixed volume
+        return isostaticity_gap(self.n_contacts, self.n_stable, self.d, zero_modes)
 
     @property
     def isostatic(self) -> bool:
-        """True when the isostaticity gap is zero with at least one stable particle."""
+        """True when the isostaticity gap is zero with at least one stable particle (for a
+        deformable run, the strict count N_c = d (N_s − 1) + d(d+1)/2)."""
         return self.n_stable > 0 and self.isostaticity_gap == 0
 
     @property
@@ -238,6 +259,19 @@ class JammingResult:
         return self.cylinder_load / float(area)
 
     @property
+    def pressure(self) -> float:
+        """tr(`stress`)/d, the virial pressure of the contact forces; NaN without a stress."""
+        return float("nan") if self.stress is None else float(np.trace(self.stress)) / self.d
+
+    @property
+    def stress_anisotropy(self) -> float:
+        """max |stress − p I| / p: zero up to round-off at a strictly jammed point; NaN
+        without a stress."""
+        if self.stress is None or not self.pressure > 0:
+            return float("nan")
+        return float(np.abs(self.stress - self.pressure * np.eye(self.d)).max() / self.pressure)
+
+    @property
     def rattler_fraction(self) -> float:
         """Fraction of particles that are rattlers."""
         return float(np.count_nonzero(self.rattlers)) / self.packing.n
@@ -269,12 +303,8 @@ class JammingResult:
     @property
     def contact_vectors(self) -> np.ndarray:
         """Minimum-image r_i − r_j for every contact, shape (M, d)."""
-        from .packing import minimum_image
-
         i, j = self.contacts[:, 0], self.contacts[:, 1]
-        periodic = self.packing.periodic
-        return minimum_image(self.packing.positions[i] - self.packing.positions[j],
-                             self.packing.box, None if periodic.all() else periodic)
+        return self.packing.minimum_image(self.packing.positions[i] - self.packing.positions[j])
 
     def summary(self) -> str:
         """A few lines describing the result, for humans."""
@@ -304,6 +334,11 @@ class JammingResult:
                          f"of stable particles{walls} (gap <= {TOUCHING_GAP:g}), zero force "
                          f"in the certificate; counted as contacts the isostaticity gap "
                          f"would be {self.isostaticity_gap + len(touching):+d}")
+        if self.stress is not None:
+            lines.append(f"  box = {self.box_mode}; pressure = {self.pressure:.6g}, stress "
+                         f"anisotropy = {self.stress_anisotropy:.1e}; stress = "
+                         f"{np.array2string(self.stress, precision=6, separator=', ')}"
+                         .replace("\n", ""))
         if self.route:
             lines.append(f"  route = {self.route}; from the input: max displacement = "
                          f"{self.displacement_max:.2e}, median = "
@@ -344,6 +379,10 @@ class JammingResult:
         }
         if self.packing.box_matrix is not None:
             arrays["box_matrix"] = self.packing.box_matrix
+        if self.box_mode != "fixed":
+            arrays["box_mode"] = np.array(self.box_mode)
+        if self.stress is not None:
+            arrays["stress"] = self.stress
         if not self.packing.boundaries.is_periodic:
             arrays.update(boundaries=np.array(str(self.packing.boundaries)),
                           wall_contacts=self.wall_contacts, wall_forces=self.wall_forces)
@@ -412,6 +451,9 @@ class JammingResult:
             phi_input=scalar("phi_input", float("nan"), float),
             displacement_max=scalar("displacement_max", float("nan"), float),
             displacement_median=scalar("displacement_median", float("nan"), float),
+            box_mode=scalar("box_mode", "fixed", str),
+            stress=(np.asarray(arrays["stress"], dtype=np.float64) if "stress" in arrays
+                    else None),
         )
 
 

@@ -79,9 +79,16 @@ def touching_outside_network(packing: Packing, contacts: np.ndarray, rattlers: n
 
     n = packing.n
     periodic = packing.boundaries.periodic
-    search = NeighborSearch(packing.positions, packing.diameters, packing.box,
-                            None if periodic.all() else periodic)
-    close = search.pairs_within(float(packing.diameters.max()) * (1.0 + gap))
+    cutoff = float(packing.diameters.max()) * (1.0 + gap)
+    if packing.box_matrix is not None:
+        from .sheared_search import sheared_pairs_within
+
+        close = sheared_pairs_within(packing.positions, packing.diameters, packing.box_matrix,
+                                     cutoff)
+    else:
+        search = NeighborSearch(packing.positions, packing.diameters, packing.box,
+                                None if periodic.all() else periodic)
+        close = search.pairs_within(cutoff)
     contacts = np.sort(np.asarray(contacts, dtype=np.int64).reshape(-1, 2), axis=1)
     stable = ~np.asarray(rattlers, dtype=bool)
     outside = ~np.isin(close.i * n + close.j, contacts[:, 0] * n + contacts[:, 1])

@@ -109,3 +109,140 @@ def test_fixed_box_jam_refuses_a_sheared_box():
 
     with pytest.raises(ValueError, match="box='deformable'"):
         jam(_sheared_packing())
+
+
+# ----------------------------------------------------------------------------- jam(box=...)
+
+import lattices  # noqa: E402
+from configurations import ls_packing  # noqa: E402
+
+from calippso import jam, jamming_category  # noqa: E402
+from calippso.deformable import strict_zero_modes  # noqa: E402
+
+#: Round-off tolerances of the checks (relative to the diameters, and to the mean force).
+OVERLAP_TOLERANCE = 1e-12
+BALANCE_TOLERANCE = 1e-12
+CONTACT_GAP_TOLERANCE = 1e-9
+ISOTROPY_TOLERANCE = 1e-9
+
+
+def _all_gaps(packing: Packing) -> np.ndarray:
+    """Relative gaps of every pair, by brute force with the sheared minimum image."""
+    i, j = np.triu_indices(packing.n, 1)
+    delta = packing.minimum_image(packing.positions[i] - packing.positions[j])
+    sigma = 0.5 * (packing.diameters[i] + packing.diameters[j])
+    return np.linalg.norm(delta, axis=1) / sigma - 1.0
+
+
+def assert_strictly_jammed(result) -> None:
+    """Converged, overlap-free, contacts that touch, positive forces of mean 1 balanced on
+    every stable particle at the returned geometry, an isotropic stress that is the forces'
+    virial sum, at least the strict count of contacts."""
+    packing, d = result.packing, result.d
+    assert result.converged, result.status
+    assert result.box_mode == "deformable"
+    assert _all_gaps(packing).min() >= -OVERLAP_TOLERANCE
+    i, j = result.contacts.T
+    vectors = packing.minimum_image(packing.positions[i] - packing.positions[j])
+    distances = np.linalg.norm(vectors, axis=1)
+    sigma = 0.5 * (packing.diameters[i] + packing.diameters[j])
+    assert np.abs(distances / sigma - 1.0).max() < CONTACT_GAP_TOLERANCE
+    assert np.all(result.forces > 0) and result.forces.mean() == pytest.approx(1.0, rel=1e-12)
+    net = np.zeros((packing.n, d))
+    normals = vectors / distances[:, None]
+    np.add.at(net, i, result.forces[:, None] * normals)
+    np.add.at(net, j, -result.forces[:, None] * normals)
+    assert np.abs(net).max() <= BALANCE_TOLERANCE
+    assert result.force_balance <= BALANCE_TOLERANCE
+    virial = np.einsum("k,ka,kb->ab", result.forces / distances, vectors, vectors)
+    assert np.allclose(result.stress, virial / packing.volume, rtol=0.0,
+                       atol=1e-12 * result.pressure)
+    assert result.stress_anisotropy <= ISOTROPY_TOLERANCE
+    assert result.pressure == pytest.approx(
+        float(result.forces @ distances) / (d * packing.volume), rel=1e-12)
+    n_stable = int(np.count_nonzero(~result.rattlers))
+    assert result.n_contacts >= d * (n_stable - 1) + d * (d + 1) // 2, result.status
+    assert result.isostaticity_gap == result.n_contacts - (
+        d * (n_stable - 1) + d * (d + 1) // 2)
+
+
+def test_strict_count_is_the_fixed_box_count_plus_the_box_shape():
+    for d in range(2, 6):
+        translations, shape_at_fixed_volume = d, d * (d + 1) // 2 - 1
+        assert strict_zero_modes(d) == translations - shape_at_fixed_volume
+
+
+@pytest.mark.parametrize("make", [lambda: lattices.triangular(4), lambda: lattices.fcc(2)],
+                         ids=["triangular", "fcc"])
+def test_a_strictly_jammed_crystal_is_returned_unchanged(make):
+    packing = make()
+    result = jam(packing, box="deformable")
+    assert_strictly_jammed(result)
+    assert result.phi == pytest.approx(packing.phi, abs=1e-9)
+    assert result.iterations == 1
+    assert np.allclose(result.packing.lattice, np.diag(packing.box), atol=1e-9)
+    assert result.stress_anisotropy <= ISOTROPY_TOLERANCE
+
+
+def test_kagome_moves_on_to_a_denser_strictly_jammed_packing():
+    packing = lattices.kagome(2)
+    assert jamming_category(packing, up_to="strict").category != "strict"
+    result = jam(packing, box="deformable")
+    assert_strictly_jammed(result)
+    assert result.phi > packing.phi + 0.1
+    assert jamming_category(result).category == "strict"
+
+
+@pytest.mark.parametrize("d, n", [(2, 64), (3, 128)])
+def test_a_random_packing_ends_strictly_jammed(d, n):
+    import generators
+
+    sizes = (generators.diameters.bidisperse(n) if d == 2
+             else generators.diameters.monodisperse(n))
+    start = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=1e5,
+                                              seed=0).packing
+    fixed = jam(start)
+    assert jamming_category(fixed).category == "collective"   # isostatic: never strict
+    result = jam(start, box="deformable")
+    assert_strictly_jammed(result)
+    assert result.isostatic and result.isostaticity_gap == 0
+    assert result.phi > fixed.phi
+    assert result.packing.is_sheared
+    assert jamming_category(result).category == "strict"
+
+
+def test_a_deformable_result_round_trips_and_jams_again_unchanged(tmp_path):
+    start = ls_packing(64, 2, seed=1, pressure=1e5)
+    result = jam(start, box="deformable")
+    back = type(result).from_arrays(np.load(result.save(tmp_path / "r.npz")))
+    assert back.box_mode == "deformable" and back.isostatic == result.isostatic
+    assert np.array_equal(back.stress, result.stress)
+    assert np.array_equal(back.packing.box_matrix, result.packing.box_matrix)
+    again = jam(back.packing, box="deformable")
+    assert again.phi == pytest.approx(result.phi, abs=1e-9)
+    assert "box = deformable" in result.summary()
+
+
+def test_deformable_box_refuses_what_it_does_not_run(tmp_path):
+    packing = lattices.triangular(4)
+    with pytest.raises(ValueError, match="checkpoint"):
+        jam(packing, box="deformable", checkpoint=tmp_path / "c.npz")
+    with pytest.raises(ValueError, match="unknown box 'elastic'"):
+        jam(packing, box="elastic")
+
+
+def test_cli_box_deformable_writes_the_box_and_the_stress(tmp_path):
+    import json
+
+    from click.testing import CliRunner
+
+    from calippso.cli import cli
+
+    source = write(lattices.kagome(2), tmp_path / "kagome.npz")
+    run = CliRunner().invoke(cli, ["jam", str(source), "-o", str(tmp_path / "out.npz"),
+                                   "--box", "deformable", "--json"])
+    assert run.exit_code == 0, run.output
+    record = json.loads(run.stdout)
+    assert record["box"] == "deformable" and record["converged"]
+    assert record["stress_anisotropy"] <= ISOTROPY_TOLERANCE
+    assert np.allclose(record["box_matrix"], read(tmp_path / "out.npz").lattice)

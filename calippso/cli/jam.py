@@ -48,6 +48,12 @@ def jam_record(result, source, output: Path | None) -> dict:
         "displacement_max": result.displacement_max,
         "displacement_median": result.displacement_median,
         "phi_change": result.phi_change,
+        "box": result.box_mode,
+        **({} if result.stress is None else {
+            "box_matrix": result.packing.lattice.tolist(),
+            "stress": result.stress.tolist(),
+            "pressure": result.pressure,
+            "stress_anisotropy": result.stress_anisotropy}),
         "output": None if output is None else str(output),
     }
 
@@ -142,12 +148,22 @@ def jam_record(result, source, output: Path | None) -> dict:
     help="Refuse a route that moves any particle further than this from the input (mean "
     "diameters); default 0.25 on the relaxed route, no bound on the LP route.",
 )
+@click.option(
+    "--box",
+    "box_mode",
+    type=click.Choice(["fixed", "deformable"]),
+    default="fixed",
+    show_default=True,
+    help="fixed: the box stays as given; deformable: the box's shape (at a volume that does "
+    "not grow) is in every LP too, towards a strictly jammed packing (LP loop alone; "
+    "write .npz or .h5 to keep a sheared box).",
+)
 @checkpoint_option
 @container_options
 @output_options
 def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters, time_limit,
         precompress_pressure, network_first, pivots, network_path, route, max_displacement,
-        checkpoint, container, out):
+        box_mode, checkpoint, container, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
@@ -186,6 +202,7 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
             checkpoint=checkpoint,
             route=route,
             max_displacement=max_displacement,
+            **({"box": box_mode} if box_mode != "fixed" else {}),
         )
     with naming(output):
         written = calippso.write(result, output)

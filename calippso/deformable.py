@@ -1,0 +1,515 @@
+"""The deformable box: CALiPPSO with the box's strain in every LP, towards strict jamming.
+
+`jam(packing, box="deformable")` runs this loop. Each LP has, besides the displacements s_i
+and γ = Γ − 1, a symmetric strain ε of the box (d(d+1)/2 variables); the box vectors become
+(I + ε) H and the centres (I + ε) r_i + s_i. A pair's linearised non-overlap condition is
+that of the fixed box with the pair vector's affine change added,
+
+    n_ij·(s_i − s_j) + r_ijᵀ ε r_ij / |r_ij| − γ σ_ij²/(2|r_ij|) ≥ −(|r_ij|² − σ_ij²)/(2|r_ij|),
+
+and the box's volume may not grow, tr ε ≤ 0. The LP maximises γ: at a volume that does not
+grow, that is the growth of the packing fraction (Donev, Torquato, Stillinger & Connelly,
+J. Comput. Phys. 197, 139 (2004); Torquato & Jiao, Phys. Rev. E 82, 061302 (2010)).
+
+The strain variables are the diagonal differences ε_μμ (μ < d), the off-diagonal entries
+ε_μν (μ < ν) and the trace t = tr ε, with ε_dd = t − Σ_{μ<d} ε_μμ; the volume condition is
+then the column bound t ≤ 0 and the LP keeps one row per pair (so that the basis of one LP
+warm-starts the next, as in the fixed box). Every strain variable is bounded by the step
+bound b, like the displacements; a pair vector then moves by at most 2√d b + 2 d b |r|.
+
+At the optimum, the strain columns say that the contact stress Σ μ_ij r_ij r_ijᵀ/|r_ij| is
+p I, with p the multiplier of t ≤ 0: the stress is isotropic and the pressure is the
+volume's multiplier (`JammingResult.stress`, docs/theory.md).
+
+What the fixed-box loop does and this one does not: the network-first and Newton stages,
+the contact pivots, the force clean-up LP, checkpoints and walls. It is the LP
+loop alone, with a warm-started HiGHS (or another backend) at every LP; the notes say so.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+
+from scipy.optimize import linprog
+from scipy.sparse.linalg import lsqr
+
+from .contacts import contact_mask, force_balance, isostaticity_gap
+from .errors import JammingError
+from .history import History, StopReason, status_sentence
+from .lp import LinearProgram
+from .neighbors import Pairs
+from .network import GEOMETRIC_CONTACT_GAP, ROUNDOFF_SHRINK_MARGIN
+from .packing import Packing
+from .periodic import lattice_wrap
+from .rattlers import remove_rattlers
+from .result import JammingResult
+from .settings import JamSettings
+from .sheared_search import half_shortest_vector, sheared_pairs_within
+from .solvers.policy import LPFailed, SolverPolicy, next_warm_start
+from .step import at_bound, held_by_bound
+from .walls import EMPTY_WALLS
+
+__all__ = ["jam_deformable", "strain_count", "strict_zero_modes", "strain_matrix",
+           "strain_coefficients", "DEFORMABLE_NOTE"]
+
+#: The note every deformable run carries.
+DEFORMABLE_NOTE = ("deformable box: LP loop alone (no network-first, Newton or pivot stage, "
+                   "no force clean-up LP)")
+#: A pair whose selection would reach this fraction of half the shortest box vector makes the
+#: bound halve (the minimum image must stay unique).
+SAFE_REACH = 1.0 - 1e-9
+#: The final search for touching pairs reaches this fraction beyond the largest diameter.
+NEAR_CONTACT = 1e-6
+#: Tolerances and iteration cap of the least-squares projection of the final forces.
+LSQR_TOLERANCE = 1e-15
+LSQR_ITERATIONS = 100_000
+
+
+def strain_count(d: int) -> int:
+    """Number of strain variables, d(d+1)/2."""
+    return d * (d + 1) // 2
+
+
+def strict_zero_modes(d: int) -> int:
+    """The 'zero modes' that make `calippso.contacts.isostaticity_gap` count a strictly
+    isostatic network, N_c = d (N_s − 1) + d(d+1)/2: the d translations less the
+    d(d+1)/2 − 1 degrees of freedom of a box whose volume does not grow (docs/theory.md)."""
+    return d + 1 - strain_count(d)
+
+
+def _off_diagonal(d: int) -> list[tuple[int, int]]:
+    return [(a, b) for a in range(d) for b in range(a + 1, d)]
+
+
+def strain_coefficients(vectors: np.ndarray, distances: np.ndarray) -> np.ndarray:
+    """The strain columns of the pair rows: r ε r / |r| as a linear function of the strain
+    variables (module docstring), shape (M, d(d+1)/2).
+
+    Parameters
+    ----------
+    vectors : ndarray, shape (M, d)
+        Pair vectors r_ij (length units).
+    distances : ndarray, shape (M,)
+        |r_ij|.
+    """
+    d = vectors.shape[1]
+    squares = vectors**2 / distances[:, None]
+    columns = [squares[:, a] - squares[:, d - 1] for a in range(d - 1)]
+    columns += [2.0 * vectors[:, a] * vectors[:, b] / distances for a, b in _off_diagonal(d)]
+    columns.append(squares[:, d - 1])
+    return np.stack(columns, axis=1)
+
+
+def strain_matrix(variables: np.ndarray, d: int) -> np.ndarray:
+    """The symmetric strain ε, shape (d, d), from the LP's strain variables (module
+    docstring: diagonal differences, off-diagonal entries, trace)."""
+    strain = np.zeros((d, d))
+    diagonal = variables[:d - 1]
+    strain[np.arange(d - 1), np.arange(d - 1)] = diagonal
+    strain[d - 1, d - 1] = variables[-1] - diagonal.sum()
+    for value, (a, b) in zip(variables[d - 1:-1], _off_diagonal(d)):
+        strain[a, b] = strain[b, a] = value
+    return strain
+
+
+def _build_lp(pairs: Pairs, n: int, d: int, bound: float, pinned: int | None) -> LinearProgram:
+    """The LP of one step: columns s (N d), the strain variables, γ; one row per pair."""
+    m, k = len(pairs), strain_count(d)
+    normals = pairs.vectors / pairs.distances[:, None]
+    coordinate = np.arange(d)
+    strain_columns = n * d + np.arange(k)
+    columns = np.concatenate([pairs.i[:, None] * d + coordinate, pairs.j[:, None] * d + coordinate,
+                              np.broadcast_to(strain_columns, (m, k)),
+                              np.full((m, 1), n * d + k)], axis=1)
+    values = np.concatenate([normals, -normals,
+                             strain_coefficients(pairs.vectors, pairs.distances),
+                             -(pairs.sigma**2 / (2.0 * pairs.distances))[:, None]], axis=1)
+    rows = np.repeat(np.arange(m), 2 * d + k + 1)
+    matrix = sp.csc_matrix((values.ravel(), (rows, columns.ravel())),
+                           shape=(m, n * d + k + 1))
+    row_lower = -(pairs.distances - pairs.sigma) * (pairs.distances + pairs.sigma) / (
+        2.0 * pairs.distances)
+    col_lower = np.full(n * d + k + 1, -bound)
+    col_upper = np.full(n * d + k + 1, bound)
+    col_upper[n * d + k - 1] = 0.0            # the trace: the volume does not grow
+    if pinned is not None:
+        col_lower[pinned * d:(pinned + 1) * d] = 0.0
+        col_upper[pinned * d:(pinned + 1) * d] = 0.0
+    col_lower[-1], col_upper[-1] = -1.0, np.inf
+    return LinearProgram(matrix, row_lower, col_lower, col_upper, pairs, n, d, bound,
+                         EMPTY_WALLS, strict_zero_modes(d))
+
+
+def _reach(d: int, bound: float) -> tuple[float, float]:
+    """How far a pair vector can move in one step: 2√d b plus a factor 2 d b of its length
+    (the strain's operator norm is at most its largest row sum, < 2 d b)."""
+    return 2.0 * np.sqrt(d) * bound, 2.0 * d * bound
+
+
+def _select(positions, diameters, matrix, bound) -> Pairs | None:
+    """Every pair that could come into contact in a step of bound b, or None when that
+    selection would reach beyond half the shortest box vector."""
+    d = positions.shape[1]
+    absolute, relative = _reach(d, bound)
+    if relative >= 0.5:
+        return None
+    half = half_shortest_vector(matrix)
+    nearest = sheared_pairs_within(positions, diameters, matrix,
+                                   min(SAFE_REACH * half, 1.5 * float(diameters.max())))
+    if not len(nearest):
+        return None
+    growth = float(np.min((nearest.distances * (1.0 + relative) + absolute) / nearest.sigma))
+    cutoff = (growth * float(diameters.max()) + absolute) / (1.0 - relative)
+    if cutoff >= SAFE_REACH * half:
+        return None
+    pairs = sheared_pairs_within(positions, diameters, matrix, cutoff)
+    return pairs.subset(pairs.distances * (1.0 - relative) - absolute
+                        <= growth * pairs.sigma)
+
+
+def _median_gap(positions, diameters, matrix) -> float:
+    """Median over particles of the relative gap to the nearest neighbour (or 1 when a
+    particle has none within 1.5 diameters)."""
+    cutoff = min(SAFE_REACH * half_shortest_vector(matrix), 1.5 * float(diameters.max()))
+    pairs = sheared_pairs_within(positions, diameters, matrix, cutoff)
+    nearest = np.full(positions.shape[0], 1.0)
+    np.minimum.at(nearest, pairs.i, pairs.distances - pairs.sigma)
+    np.minimum.at(nearest, pairs.j, pairs.distances - pairs.sigma)
+    return float(np.median(nearest))
+
+
+def _smallest_gap(positions, diameters, matrix) -> float:
+    cutoff = min(SAFE_REACH * half_shortest_vector(matrix), float(diameters.max()) * 1.01)
+    return sheared_pairs_within(positions, diameters, matrix, cutoff).smallest_gap()
+
+
+def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> JammingResult:
+    """Jam `packing` with the box's strain in every LP (module docstring).
+
+    Parameters
+    ----------
+    packing : Packing
+        Periodic along every axis; rectangular or sheared (`Packing.box_matrix`).
+    settings : JamSettings
+        The loop's tolerances, bounds, backend and contact threshold (the stages that this
+        loop does not run ignore their settings).
+    callback : callable, optional
+        Called after every LP with the record as a dict plus "iteration" and "packing";
+        returning True stops the run.
+
+    Returns
+    -------
+    JammingResult
+        With ``box_mode="deformable"``, the final (possibly sheared) box, the contact forces
+        and the contact stress tensor (`JammingResult.stress`).
+
+    Raises
+    ------
+    ValueError
+        A box with walls or a cylinder.
+    JammingError
+        Every backend failed on an LP, or the box became too small for any step.
+    """
+    if not packing.boundaries.is_periodic:
+        raise ValueError("box='deformable' needs a periodic box; walls and cylinders stay "
+                         "where they are (use the fixed box)")
+    start = time.perf_counter()
+    n, d = packing.n, packing.d
+    input_gap = _smallest_gap(packing.positions / packing.mean_diameter,
+                              packing.diameters / packing.mean_diameter,
+                              packing.lattice / packing.mean_diameter)
+    if input_gap < -settings.overlap_tolerance:
+        raise ValueError(f"the input overlaps: the deepest relative gap is {input_gap:.3e}, "
+                         f"beyond overlap_tolerance {settings.overlap_tolerance:g}")
+    scale = packing.mean_diameter
+    positions = packing.positions / scale
+    diameters = packing.diameters / scale
+    matrix = packing.lattice / scale
+    phi_input = packing.phi
+    history = History(d, start, settings.verbose, zero_modes=strict_zero_modes(d))
+    history.note(DEFORMABLE_NOTE)
+    policy = SolverPolicy(settings)
+    pinned = 0 if settings.pin else None
+    gap = _median_gap(positions, diameters, matrix)
+    bound = float(np.clip(settings.initial_step if settings.initial_step is not None
+                          else max(gap, 1e-3), settings.min_step, settings.max_step))
+    basis, reason, last = None, StopReason.MAX_ITERS, None
+
+    def current(x, sigma, h) -> Packing:
+        return Packing.sheared(x * scale, sigma * scale, h * scale)
+
+    def fail(message: str) -> JammingError:
+        return JammingError(message, packing=current(positions, diameters, matrix),
+                            history=history.to_array())
+
+    while history.lps_solved < settings.max_iters:
+        step = bound
+        while True:
+            pairs = _select(positions, diameters, matrix, step)
+            if pairs is not None:
+                break
+            step *= 0.5
+            if step < settings.min_step * 1e-3:
+                raise fail("box too small: even a vanishing step would need pairs beyond half "
+                           "the shortest box vector")
+        def build(b: float, selected=pairs, first=step) -> LinearProgram:
+            rows = selected if b == first else _select(positions, diameters, matrix, b)
+            return _build_lp(rows, n, d, b, pinned)
+
+        try:
+            solved = policy.solve(build, step, basis, history.lps_solved + 1)
+        except LPFailed as error:
+            raise fail(str(error)) from None
+        if solved.note is not None:
+            history.note(solved.note)
+        lp, solution = solved.lp, solved.solution
+        taken = _analyse(lp, solution, settings)
+        strain = strain_matrix(solution.x[n * d:-1], d)
+        deformation = np.eye(d) + strain
+        new_positions = positions @ deformation.T + solution.x[:n * d].reshape(n, d)
+        new_matrix = deformation @ matrix
+        new_diameters = diameters * np.sqrt(1.0 + solution.gamma)
+        new_positions = lattice_wrap(new_positions, new_matrix)
+        min_gap = _smallest_gap(new_positions, new_diameters, new_matrix)
+        positions, diameters, matrix = new_positions, new_diameters, new_matrix
+        basis = next_warm_start(solution, solved.warm_start is not None, taken["max_move"],
+                                lp.step_bound)
+        record = history.add_lp(
+            stage="lp", solver_time=solution.seconds + policy.take_discarded_seconds(),
+            gamma=solution.gamma, max_displacement=taken["max_move"], rows=lp.n_rows,
+            step_bound=lp.step_bound, n_contacts=taken["n_contacts"],
+            n_stable=int(n - taken["rattlers"].sum()), force_balance=taken["balance"],
+            min_gap=min_gap, phi=current(positions, diameters, matrix).phi,
+            ipm_iterations=solution.ipm_iterations)
+        last = (lp, solution, taken)
+        if callback is not None and callback({**record.as_dict(),
+                                              "iteration": history.lps_solved,
+                                              "packing": current(positions, diameters,
+                                                                 matrix)}):
+            reason = StopReason.STOPPED_BY_CALLBACK
+            break
+        if (record.sqrt_gamma_minus_1 < settings.tol_gamma
+                and taken["max_move"] < settings.tol_s
+                and taken["max_move"] < 0.5 * lp.step_bound and not taken["held"]):
+            reason = StopReason.CONVERGED
+            break
+        if history.stalled(settings.tol_gamma):
+            reason = StopReason.STALLED
+            break
+        if (settings.time_limit is not None
+                and time.perf_counter() - start >= settings.time_limit):
+            reason = StopReason.TIME_LIMIT
+            break
+        bound = _next_bound(lp.step_bound, taken, settings)
+    if last is None:
+        raise fail(f"no LP was solved (max_iters = {settings.max_iters})")
+    return _result(positions, diameters, matrix, scale, last, reason, history, start,
+                   phi_input, settings)
+
+
+def _analyse(lp: LinearProgram, solution, settings: JamSettings) -> dict:
+    """Contacts, rattlers, forces and their balance, the largest move of a stable particle
+    or of the strain, whether the bound held the step back."""
+    n, d = lp.n, lp.d
+    rows = np.flatnonzero(contact_mask(solution.duals, settings.contact_threshold))
+    pairs = lp.pairs
+    rattlers, kept = remove_rattlers(n, d, pairs.i[rows], pairs.j[rows])
+    rows = rows[kept]
+    forces = 0.5 * solution.duals[rows]
+    normals = pairs.vectors[rows] / pairs.distances[rows, None]
+    balance = force_balance(n, pairs.i[rows], pairs.j[rows], normals, forces, ~rattlers)
+    s = solution.x[:n * d].reshape(n, d)
+    strain = solution.x[n * d:-1]
+    stable_moves = np.abs(s[~rattlers]).max(initial=0.0)
+    contacting = np.zeros(n, bool)
+    contacting[pairs.i[rows]] = contacting[pairs.j[rows]] = True
+    max_move = float(max(stable_moves, np.abs(strain).max(initial=0.0)))
+    if not (~rattlers).any():
+        max_move = float(max(np.abs(s).max(initial=0.0), np.abs(strain).max(initial=0.0)))
+    return {"rows": rows, "rattlers": rattlers, "forces": forces, "balance": balance,
+            "max_move": max_move, "n_contacts": int(rows.shape[0]),
+            "stable_fraction": float(np.count_nonzero(~rattlers)) / n,
+            "held": held_by_bound(lp, solution)}
+
+
+def _next_bound(step: float, taken: dict, settings: JamSettings) -> float:
+    """The fixed box's rule (`calippso.ilp.next_step_bound`) on the largest move of a stable
+    particle or of the strain."""
+    if at_bound(taken["max_move"], step) or taken["stable_fraction"] < 0.5:
+        proposed = step * settings.step_growth if at_bound(taken["max_move"], step) else step
+    elif taken["held"]:
+        proposed = max(step, settings.step_margin * taken["max_move"])
+    else:
+        proposed = settings.step_margin * taken["max_move"]
+    return float(np.clip(proposed, settings.min_step, settings.max_step))
+
+
+def _result(positions, diameters, matrix, scale, last, reason, history, start, phi_input,
+            settings) -> JammingResult:
+    """The result: the final packing (shrunk by round-off overlaps, if any), its contact
+    network and forces (`_final_network`), the stress tensor, the strain certificate in the
+    notes."""
+    lp, solution, taken = last
+    gap = _smallest_gap(positions, diameters, matrix)
+    if gap < 0:
+        diameters = diameters * (1.0 + gap) * (1.0 - ROUNDOFF_SHRINK_MARGIN)
+        history.note(f"diameters scaled by 1 - {-gap:.1e} to remove round-off overlaps")
+    packing = Packing.sheared(positions * scale, diameters * scale, matrix * scale)
+    pairs, rows = lp.pairs, taken["rows"]
+    i, j, forces, rattlers, balance = _final_network(packing, pairs.i[rows], pairs.j[rows],
+                                                     taken["forces"], history)
+    vectors = packing.minimum_image(packing.positions[i] - packing.positions[j])
+    stress = _stress(vectors, forces, packing.volume)
+    n_stable = int(rattlers.size - rattlers.sum())
+    gap_count = isostaticity_gap(i.shape[0], n_stable, lp.d, strict_zero_modes(lp.d))
+    if reason == StopReason.CONVERGED and (n_stable == 0 or gap_count < 0
+                                           or balance > settings.balance_tolerance):
+        reason = StopReason.NOT_RIGID
+    history.note(_certificate_note(lp, solution, stress))
+    status = status_sentence(reason, history.lps_solved, history.last_step(), n_stable,
+                             gap_count, history.notes)
+    return JammingResult(
+        packing=packing, contacts=np.stack([i, j], axis=1).astype(np.int64),
+        forces=forces, rattlers=rattlers, converged=reason.jammed, status=status,
+        iterations=history.lps_solved, history=history.to_array(),
+        wall_time=time.perf_counter() - start, force_balance=balance,
+        dual_normalization=float(solution.duals @ lp.gamma_coefficients),
+        solver=solution.solver, stop_reason=reason, notes=list(history.notes),
+        phi_input=phi_input, box_mode="deformable", stress=stress)
+
+
+def _final_network(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.ndarray,
+                   history: History):
+    """The contact network and forces at the final geometry.
+
+    The last LP's contacts and forces, projected onto the forces in equilibrium with an
+    isotropic stress at the final positions (`_balanced_forces`). At a degenerate optimum
+    (a crystal: the vertex puts its duals on too few rows, the network looks hypostatic),
+    the touching pairs (h < `GEOMETRIC_CONTACT_GAP`) with the balanced forces nearest to
+    uniform replace it, when those are all positive.
+
+    Returns
+    -------
+    (i, j, forces of mean 1, rattlers, force balance)
+    """
+    n, d = packing.n, packing.d
+    rattlers, kept = remove_rattlers(n, d, i, j)
+    i, j, forces = i[kept], j[kept], forces[kept]
+    balanced = _balanced_forces(packing, i, j, forces, rattlers)
+    n_stable = int(n - rattlers.sum())
+    if n_stable == 0 or isostaticity_gap(i.shape[0], n_stable, d, strict_zero_modes(d)) < 0:
+        close = sheared_pairs_within(packing.positions, packing.diameters, packing.lattice,
+                                     float(packing.diameters.max()) * (1.0 + NEAR_CONTACT))
+        touching = close.subset(close.gaps < GEOMETRIC_CONTACT_GAP)
+        t_rattlers, t_kept = remove_rattlers(n, d, touching.i, touching.j)
+        ti, tj = touching.i[t_kept], touching.j[t_kept]
+        if (int(n - t_rattlers.sum()), ti.shape[0]) > (n_stable, i.shape[0]):
+            uniform = _balanced_forces(packing, ti, tj, np.ones(ti.shape[0]), t_rattlers)
+            if uniform is not None:
+                history.note(f"contacts taken from the touching pairs (h < "
+                             f"{GEOMETRIC_CONTACT_GAP:g}): the LP duals are degenerate here; "
+                             f"forces are the balanced, isotropic ones nearest to uniform")
+                i, j, rattlers, balanced = ti, tj, t_rattlers, uniform
+    if balanced is None:
+        mean = float(forces.mean()) if forces.size else 1.0
+        return i, j, forces / mean, rattlers, _balance_of(packing, i, j, forces, rattlers)
+    forces = balanced / balanced.mean()
+    return i, j, forces, rattlers, _balance_of(packing, i, j, forces, rattlers)
+
+
+def _equilibrium(packing: Packing, i: np.ndarray, j: np.ndarray,
+                 rattlers: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The matrix whose null space holds the forces f in equilibrium on every stable particle
+    with an isotropic stress: d rows per particle (Σ f n), then the deviatoric stress
+    (the strain columns but the trace, `strain_coefficients`); and the unit normals."""
+    n, d = packing.n, packing.d
+    vectors = packing.minimum_image(packing.positions[i] - packing.positions[j])
+    distances = np.linalg.norm(vectors, axis=1)
+    normals = vectors / distances[:, None]
+    m = i.shape[0]
+    coordinate = np.arange(d)
+    rows = np.concatenate([(i[:, None] * d + coordinate).ravel(),
+                           (j[:, None] * d + coordinate).ravel()])
+    columns = np.concatenate([np.repeat(np.arange(m), d)] * 2)
+    values = np.concatenate([normals.ravel(), -normals.ravel()])
+    balance = sp.csr_matrix((values, (rows, columns)), shape=(n * d, m))
+    deviatoric = sp.csr_matrix(strain_coefficients(vectors, distances)[:, :-1].T)
+    return sp.vstack([balance, deviatoric]).tocsr(), normals
+
+
+def _balanced_forces(packing: Packing, i, j, forces, rattlers) -> np.ndarray | None:
+    """Positive forces in equilibrium with an isotropic stress at the packing's geometry:
+    those nearest to `forces` (least squares), or, when one of those is not positive, the
+    point towards the forces whose smallest is largest (an LP) where the smallest force
+    reaches half that largest value; None when no positive such forces exist."""
+    if not i.shape[0]:
+        return None
+    matrix, _ = _equilibrium(packing, i, j, rattlers)
+    nearest = _projected(matrix, forces)
+    if nearest.min() > 0:
+        return nearest
+    m = i.shape[0]
+    # variables (f, t): maximise t subject to A f = 0, Σ f = m, f ≥ t
+    equalities = sp.vstack([sp.hstack([matrix, sp.csr_matrix((matrix.shape[0], 1))]),
+                            sp.csr_matrix(np.append(np.ones(m), 0.0)[None, :])]).tocsr()
+    answer = linprog(np.append(np.zeros(m), -1.0), A_eq=equalities,
+                     b_eq=np.append(np.zeros(matrix.shape[0]), float(m)),
+                     A_ub=sp.hstack([-sp.identity(m), np.ones((m, 1))]).tocsr(),
+                     b_ub=np.zeros(m), bounds=[(0, None)] * m + [(None, None)],
+                     method="highs")
+    if answer.status != 0 or not answer.x[-1] > 0:
+        return None
+    widest, smallest = answer.x[:m], float(answer.x[-1])
+    nearest *= m / nearest.sum()
+    # the largest share of `nearest` with every force at least half the LP's smallest one
+    below = nearest < 0.5 * smallest
+    share = np.min((widest[below] - 0.5 * smallest) / (widest[below] - nearest[below]),
+                   initial=1.0)
+    blended = _projected(matrix, share * nearest + (1.0 - share) * widest)
+    return blended if blended.min() > 0 else None
+
+
+def _projected(matrix: sp.csr_matrix, forces: np.ndarray) -> np.ndarray:
+    """`forces` projected onto the null space of `matrix` (least squares)."""
+    correction = lsqr(matrix.T.tocsr(), forces, atol=LSQR_TOLERANCE, btol=LSQR_TOLERANCE,
+                      iter_lim=LSQR_ITERATIONS)[0]
+    return forces - matrix.T @ correction
+
+
+def _balance_of(packing: Packing, i, j, forces, rattlers) -> float:
+    """max over stable particles of |Σ f n| / mean force, at the packing's geometry."""
+    if not i.shape[0]:
+        return 0.0
+    _, normals = _equilibrium(packing, i, j, rattlers)
+    return force_balance(packing.n, i, j, normals, forces, ~rattlers)
+
+
+def _stress(vectors: np.ndarray, forces: np.ndarray, volume: float) -> np.ndarray:
+    """Σ_k f_k |r_k| n_k n_kᵀ / V over the contacts, shape (d, d)."""
+    distances = np.linalg.norm(vectors, axis=1)
+    stress = np.einsum("k,ka,kb->ab", forces / distances, vectors, vectors) / volume
+    return 0.5 * (stress + stress.T)
+
+
+def _certificate_note(lp: LinearProgram, solution, stress: np.ndarray) -> str:
+    """The strain certificate of the last LP: the anisotropy of its own contact stress
+    Σ μ r rᵀ/|r| (over every row), and its pressure against the volume's multiplier (the
+    reduced cost of the trace column); then that of the final forces (`stress`)."""
+    d, pairs = lp.d, lp.pairs
+    lp_stress = np.einsum("k,ka,kb->ab", solution.duals / pairs.distances, pairs.vectors,
+                          pairs.vectors)
+    lp_pressure = float(np.trace(lp_stress)) / d
+    volume_multiplier = float((lp.matrix.T @ solution.duals)[lp.n * d + strain_count(d) - 1])
+    if not lp_pressure > 0:
+        return "strain certificate: the last LP has no contact stress"
+    anisotropy = float(np.abs(lp_stress - lp_pressure * np.eye(d)).max()) / lp_pressure
+    mismatch = abs(volume_multiplier - lp_pressure) / lp_pressure
+    final = float(np.trace(stress)) / d
+    final_anisotropy = (float(np.abs(stress - final * np.eye(d)).max()) / final if final > 0
+                        else float("nan"))
+    return (f"strain certificate of the last LP: stress anisotropy {anisotropy:.1e}, volume "
+            f"multiplier = virial pressure to {mismatch:.1e}; final forces: stress "
+            f"anisotropy {final_anisotropy:.1e}")
