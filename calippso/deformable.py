@@ -365,10 +365,15 @@ def _result(positions, diameters, matrix, scale, last, reason, history, start, p
     stress = _stress(vectors, forces, packing.volume)
     n_stable = int(rattlers.size - rattlers.sum())
     gap_count = isostaticity_gap(i.shape[0], n_stable, lp.d, strict_zero_modes(lp.d))
-    if reason == StopReason.CONVERGED and (n_stable == 0 or gap_count < 0
-                                           or balance > settings.balance_tolerance):
-        reason = StopReason.NOT_RIGID
     history.note(_certificate_note(lp, solution, stress))
+    category = None
+    if reason == StopReason.CONVERGED:
+        if n_stable == 0 or gap_count < 0 or balance > settings.balance_tolerance:
+            reason = StopReason.NOT_RIGID
+        else:
+            category = _strict_test(packing, np.stack([i, j], axis=1), rattlers, history)
+            if category is not None and category != "strict":
+                reason = StopReason.NOT_RIGID
     status = status_sentence(reason, history.lps_solved, history.last_step(), n_stable,
                              gap_count, history.notes)
     return JammingResult(
@@ -378,7 +383,31 @@ def _result(positions, diameters, matrix, scale, last, reason, history, start, p
         wall_time=time.perf_counter() - start, force_balance=balance,
         dual_normalization=float(solution.duals @ lp.gamma_coefficients),
         solver=solution.solver, stop_reason=reason, notes=list(history.notes),
-        phi_input=phi_input, box_mode="deformable", stress=stress)
+        phi_input=phi_input, box_mode="deformable", stress=stress, category=category)
+
+
+def _strict_test(packing: Packing, contacts: np.ndarray, rattlers: np.ndarray,
+                 history: History) -> str | None:
+    """The category of the final packing by the linear test of `calippso.categories`, on
+    the network and every other pair that touches (a note when it is not "strict"); None
+    when the test could not decide (a note says why)."""
+    from .categories import jamming_category
+    from .touching import touching_outside_network
+
+    touching = touching_outside_network(packing, contacts, rattlers)
+    every = JammingResult(packing=packing, contacts=np.concatenate([contacts, touching.pairs]),
+                          forces=np.zeros(0), rattlers=rattlers, converged=False, status="",
+                          iterations=0)
+    try:
+        category = jamming_category(every, up_to="strict")
+    except (RuntimeError, ValueError) as error:   # the test's LP failed, or a refusal
+        history.note(f"strict jamming not verified: {error}")
+        return None
+    if category.category != "strict":
+        what = "opens contacts" if category.opens_contacts else "keeps every contact closed"
+        history.note(f"the linear test of strict jamming found an unjamming motion that "
+                     f"{what} (failed class: {category.failed}): not strictly jammed")
+    return category.category
 
 
 def _final_network(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.ndarray,

@@ -33,6 +33,7 @@ A run with a deformable box (``jam(..., box="deformable")``) adds, and a sheared
 ==========================  ===============  ===============================================
 box_mode                    () str           "deformable" (absent: "fixed")
 stress                      (d, d) float64   contact stress Σ f |r| n nᵀ / V
+category                    () str           jamming category of the final packing
 box_matrix                  (d, d) float64   box vectors as columns, upper triangular
 ==========================  ===============  ===============================================
 
@@ -140,6 +141,9 @@ class JammingResult:
         The contact stress tensor Σ_k f_k |r_k| n_k n_kᵀ / V (forces of mean 1, per unit
         volume of the caller's length units); set by deformable runs, None otherwise.
         Isotropic at a strictly jammed point (`stress_anisotropy`).
+    category : str or None
+        The jamming category (`calippso.jamming_category`) that a deformable run found for
+        its final packing ("strict" when it converged); None when not tested.
     """
 
     packing: Packing
@@ -164,6 +168,7 @@ class JammingResult:
     displacement_median: float = float("nan")
     box_mode: str = "fixed"
     stress: np.ndarray | None = None
+    category: str | None = None
 
     @property
     def d(self) -> int:
@@ -335,7 +340,8 @@ class JammingResult:
                          f"in the certificate; counted as contacts the isostaticity gap "
                          f"would be {self.isostaticity_gap + len(touching):+d}")
         if self.stress is not None:
-            lines.append(f"  box = {self.box_mode}; pressure = {self.pressure:.6g}, stress "
+            category = "" if self.category is None else f"category = {self.category}; "
+            lines.append(f"  box = {self.box_mode}; {category}pressure = {self.pressure:.6g}, stress "
                          f"anisotropy = {self.stress_anisotropy:.1e}; stress = "
                          f"{np.array2string(self.stress, precision=6, separator=', ')}"
                          .replace("\n", ""))
@@ -383,6 +389,8 @@ class JammingResult:
             arrays["box_mode"] = np.array(self.box_mode)
         if self.stress is not None:
             arrays["stress"] = self.stress
+        if self.category is not None:
+            arrays["category"] = np.array(self.category)
         if not self.packing.boundaries.is_periodic:
             arrays.update(boundaries=np.array(str(self.packing.boundaries)),
                           wall_contacts=self.wall_contacts, wall_forces=self.wall_forces)
@@ -452,6 +460,7 @@ class JammingResult:
             displacement_max=scalar("displacement_max", float("nan"), float),
             displacement_median=scalar("displacement_median", float("nan"), float),
             box_mode=scalar("box_mode", "fixed", str),
+            category=scalar("category", None, str),
             stress=(np.asarray(arrays["stress"], dtype=np.float64) if "stress" in arrays
                     else None),
         )

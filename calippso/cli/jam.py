@@ -53,7 +53,8 @@ def jam_record(result, source, output: Path | None) -> dict:
             "box_matrix": result.packing.lattice.tolist(),
             "stress": result.stress.tolist(),
             "pressure": result.pressure,
-            "stress_anisotropy": result.stress_anisotropy}),
+            "stress_anisotropy": result.stress_anisotropy,
+            "category": result.category}),
         "output": None if output is None else str(output),
     }
 

@@ -1,0 +1,107 @@
+"""`jam(box="deformable")` against the fixed-box `jam` of the same input: one row per
+(d, N, seed).
+
+Every input is a Lubachevsky–Stillinger state at reduced pressure `--pressure` (default
+1e5): monodisperse spheres for d ≥ 3, the 50:50 mixture of discs with diameter ratio 1.4 in
+d = 2 (equal discs crystallise). Both runs start from it; each is timed once, the
+best of `--repeat` calls. Run from the repository root:
+
+    python bench/deformable.py --cases 3:1024 --seeds 1 2 3 --json deformable.json
+    python bench/deformable.py --cases 2:1024 3:1024 --seeds 1 2 3 --cache DIR
+
+`--cache DIR` keeps the LS inputs (`ls_d{d}_n{N}_p{pressure}_seed{seed}.npz`).
+
+Columns: d, N, seed; φ of the fixed-box and of the deformable run, their difference;
+the deformable run's LPs, isostaticity gap (strict count), stress anisotropy, force balance,
+whether it converged, whether `calippso.jamming_category` finds it strictly jammed (and the
+fixed-box result's category); the seconds of each run and their ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import generators
+import calippso
+
+#: Diameter ratio of the 50:50 mixture of discs in d = 2.
+BIDISPERSE_RATIO = 1.4
+
+
+def start(n: int, d: int, seed: int, pressure: float, cache: str | None):
+    """The LS input of one case (read from or written to `cache` when given)."""
+    path = None if cache is None else Path(cache) / f"ls_d{d}_n{n}_p{pressure:g}_seed{seed}.npz"
+    if path is not None and path.exists():
+        return calippso.read(path)
+    sizes = (generators.diameters.bidisperse(n, BIDISPERSE_RATIO) if d == 2
+             else generators.diameters.monodisperse(n))
+    packing = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
+                                                seed=seed).packing
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        calippso.write(packing, path)
+    return packing
+
+
+def timed(packing, repeat: int, **options):
+    """The result of `calippso.jam` and the seconds of the fastest of `repeat` calls."""
+    best = None
+    for _ in range(repeat):
+        began = time.perf_counter()
+        result = calippso.jam(packing, **options)
+        seconds = time.perf_counter() - began
+        if best is None or seconds < best[1]:
+            best = (result, seconds)
+    return best
+
+
+def row(n: int, d: int, seed: int, pressure: float, repeat: int, cache: str | None) -> dict:
+    """Both runs of one case (see the module docstring for the columns)."""
+    packing = start(n, d, seed, pressure, cache)
+    fixed, fixed_s = timed(packing, repeat)
+    deformable, deformable_s = timed(packing, repeat, box="deformable")
+    return {"d": d, "n": n, "seed": seed, "pressure": pressure, "phi_fixed": fixed.phi,
+            "phi_deformable": deformable.phi, "phi_gain": deformable.phi - fixed.phi,
+            "lps_fixed": fixed.iterations, "lps_deformable": deformable.iterations,
+            "gap": deformable.isostaticity_gap, "anisotropy": deformable.stress_anisotropy,
+            "balance": deformable.force_balance, "converged": deformable.converged,
+            "category": calippso.jamming_category(deformable).category,
+            "category_fixed": calippso.jamming_category(fixed).category,
+            "fixed_s": fixed_s, "deformable_s": deformable_s,
+            "ratio": deformable_s / fixed_s}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--cases", nargs="+", default=["3:1024"], help="d:N")
+    parser.add_argument("--seeds", nargs="+", type=int, default=[1])
+    parser.add_argument("--pressure", type=float, default=1e5)
+    parser.add_argument("--repeat", type=int, default=1, help="calls timed per run")
+    parser.add_argument("--json", help="write the rows to this file")
+    parser.add_argument("--cache", help="folder of the LS inputs (read, or made and kept)")
+    args = parser.parse_args()
+    print(f"{'d':>2} {'N':>5} {'seed':>4} {'phi fixed':>9} {'phi def.':>9} {'gain':>8} "
+          f"{'LPs f':>5} {'LPs d':>5} {'gap':>4} {'aniso':>7} {'balance':>7} {'conv':>5} "
+          f"{'category':>10} {'fixed cat.':>10} {'fixed s':>8} {'def. s':>8} {'ratio':>6}")
+    rows = []
+    for case in args.cases:
+        d, n = (int(part) for part in case.split(":"))
+        for seed in args.seeds:
+            r = row(n, d, seed, args.pressure, args.repeat, args.cache)
+            rows.append(r)
+            print(f"{d:>2} {n:>5} {seed:>4} {r['phi_fixed']:>9.6f} {r['phi_deformable']:>9.6f} "
+                  f"{r['phi_gain']:>8.1e} {r['lps_fixed']:>5} {r['lps_deformable']:>5} "
+                  f"{r['gap']:>4} {r['anisotropy']:>7.0e} {r['balance']:>7.0e} "
+                  f"{str(r['converged']):>5} {r['category']:>10} {r['category_fixed']:>10} "
+                  f"{r['fixed_s']:>8.2f} {r['deformable_s']:>8.2f} {r['ratio']:>6.2f}",
+                  flush=True)
+    if args.json:
+        with open(args.json, "w") as handle:
+            json.dump(rows, handle, indent=1)
+
+
+if __name__ == "__main__":
+    main()
