@@ -44,11 +44,18 @@ NORMALIZATION_TOLERANCE = 1e-10
 
 
 def pytest_configure(config) -> None:
-    """In a pytest-xdist worker, Numba's parallel loops run on `WORKER_THREADS` threads."""
+    """In a pytest-xdist worker, Numba's parallel loops run on `WORKER_THREADS` threads. In
+    the controller of a run with workers, the generators' kernels are compiled and cached
+    first, once, split over the cores (`generators.precompile`): otherwise each worker
+    compiles the same kernels beside the other on a fresh install."""
     if os.environ.get("PYTEST_XDIST_WORKER"):
         import numba
 
         numba.set_num_threads(WORKER_THREADS)
+    elif getattr(config.option, "numprocesses", None) and not config.option.collectonly:
+        from generators.precompile import precompile
+
+        precompile()
 
 
 @pytest.fixture

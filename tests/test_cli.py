@@ -329,6 +329,7 @@ def test_report_of_a_folder_pools_its_results(capfd, tmp_path, start_2d):
                                 "(.npz, .h5, .hdf5) in it\n"
 
 
+@pytest.mark.slow
 def test_report_warns_when_a_fit_rests_on_few_values(capfd, tmp_path):
     from configurations import random_sequential_addition
 

@@ -199,6 +199,7 @@ def test_a_quench_between_walls_jams_on_its_own_network(tmp_path, capfd):
     assert read_result(jammed).packing.boundaries == WALLS_X
 
 
+@pytest.mark.slow
 def test_a_cylinder_round_trip(tmp_path, capfd, monkeypatch):
     """generate random --cylinder, jam, report, render: the cylinder survives, its contacts
     carry the whole load, the profile starts low at the curved wall."""

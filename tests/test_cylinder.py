@@ -108,7 +108,7 @@ def assert_jammed_in_a_cylinder(result) -> None:
 @pytest.mark.parametrize("d, n, seed, polydisperse", [
     (2, 96, 1, True),
     (3, 128, 2, True),
-    (3, 128, 1, False),
+    pytest.param(3, 128, 1, False, marks=pytest.mark.slow),
 ])
 def test_jam_in_a_cylinder(d, n, seed, polydisperse):
     start = cylinder_start(n, d, seed, polydisperse)

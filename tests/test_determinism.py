@@ -78,6 +78,7 @@ CHILD = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_separate_processes_agree():
     """Two fresh interpreters (new hash seeds, new solver state) give identical results."""
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}

@@ -165,6 +165,7 @@ def test_folder_remembers_its_spec_and_refuses_another(tmp_path):
     threads.shutdown()
 
 
+@pytest.mark.slow
 def test_cli_refuses_a_rerun_with_other_parameters(tmp_path, capfd, local_threads):
     folder = tmp_path / "ens"
     args = ["ensemble", "--protocol", "poisson", "--n", "16", "--d", "2", "--workers", "1",

@@ -20,13 +20,17 @@ CASES = [
     (["ls_jam.py", "--d", "3"], "(isostatic)"),
     # d = 4: the script's path of d = 3 and 5, at a dimension the core tests jam already
     pytest.param(["ls_jam.py", "--d", "4"], "(isostatic)", marks=pytest.mark.slow),
-    (["ls_jam.py", "--d", "5"], "(isostatic)"),
+    # slow: the d = 5 path is jammed by the core tests; MLS, the report and the ensemble by
+    # their own tests (test_generators_mls, test_reporting, test_ensemble)
+    pytest.param(["ls_jam.py", "--d", "5"], "(isostatic)", marks=pytest.mark.slow),
     (["random_start.py"], "(isostatic)"),
     (["polydisperse_lognormal.py"], "(isostatic)"),
-    (["mls_closest_jamming.py"], "CALiPPSO moved phi"),
+    pytest.param(["mls_closest_jamming.py"], "CALiPPSO moved phi", marks=pytest.mark.slow),
     (["spherocylinders.py", "--out", "{tmp}", "--picture"], "spherocylinders.png"),
-    (["force_gap_report.py", "--out", "{tmp}/report"], "report.md"),
-    (["ensemble.py", "--out", "{tmp}/ensemble"], "isostatic = True"),
+    pytest.param(["force_gap_report.py", "--out", "{tmp}/report"], "report.md",
+                 marks=pytest.mark.slow),
+    pytest.param(["ensemble.py", "--out", "{tmp}/ensemble"], "isostatic = True",
+                 marks=pytest.mark.slow),
     (["walls_layering.py", "--tiny", "--out", "{tmp}"], "(isostatic)"),
 ]
 

@@ -125,6 +125,7 @@ def test_ls_killed_with_sigkill_resumes_bit_for_bit(tmp_path, ls_reference):
     assert_no_overlap(resumed.packing)
 
 
+@pytest.mark.slow
 def test_mls_killed_with_sigkill_resumes_bit_for_bit(tmp_path, mls_reference):
     """... and once finished, the run returns from its checkpoint without recomputing."""
     path = tmp_path / "mls_run"

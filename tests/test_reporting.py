@@ -58,6 +58,7 @@ def test_report_of_one_run(jammed_2d, tmp_path):
     assert f"{result.phi:.6f}" in page
 
 
+@pytest.mark.slow
 def test_report_pools_an_ensemble(jammed_2d, tmp_path):
     path = calippso.report(jammed_2d, tmp_path, n_bootstrap=20, title="two disk packings")
     summary = json.loads((tmp_path / "summary.json").read_text())

@@ -213,10 +213,10 @@ def assert_jammed_between_walls(result) -> None:
 @pytest.mark.parametrize("d, n, axes, polydisperse", [
     (2, 128, [0], True),
     (2, 64, [0, 1], True),
-    (3, 128, [0], False),
+    pytest.param(3, 128, [0], False, marks=pytest.mark.slow),
     (3, 128, [0, 1], True),
     (3, 64, [0, 1, 2], True),
-    (3, 128, [0, 1], False),
+    pytest.param(3, 128, [0, 1], False, marks=pytest.mark.slow),
 ])
 def test_jam_between_flat_walls(d, n, axes, polydisperse):
     start = walled_start(n, d, axes, polydisperse=polydisperse)
