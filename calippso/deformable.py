@@ -15,7 +15,8 @@ The strain variables are the diagonal differences ε_μμ (μ < d), the off-diag
 ε_μν (μ < ν) and the trace t = tr ε, with ε_dd = t − Σ_{μ<d} ε_μμ; the volume condition is
 then the column bound t ≤ 0 and the LP keeps one row per pair (so that the basis of one LP
 warm-starts the next, as in the fixed box). Every strain variable is bounded by the step
-bound b, like the displacements; a pair vector then moves by at most 2√d b + 2 d b |r|.
+bound b times `STRAIN_BOUND`; a pair vector then moves by at most 2√d b + √(2d² − 1) e |r|
+in a step, with e that bound (`_reach`).
 
 At the optimum, the strain columns say that the contact stress Σ μ_ij r_ij r_ijᵀ/|r_ij| is
 p I, with p the multiplier of t ≤ 0: the stress is isotropic and the pressure is the
@@ -154,9 +155,10 @@ def _build_lp(pairs: Pairs, n: int, d: int, bound: float, pinned: int | None) ->
 
 
 def _reach(d: int, bound: float) -> tuple[float, float]:
-    """How far a pair vector can move in one step: 2√d b plus a factor 2 d b of its length
-    (the strain's operator norm is at most its largest row sum, < 2 d b)."""
-    return 2.0 * np.sqrt(d) * bound, 2.0 * d * STRAIN_BOUND * bound
+    """How far a pair vector can move in one step: 2√d b, plus a fraction of its length that
+    bounds the strain's operator norm by its Frobenius norm, √(2d² − 1) e, with e =
+    `STRAIN_BOUND` b the bound on every strain variable (|ε_dd| ≤ d e through the trace)."""
+    return 2.0 * np.sqrt(d) * bound, np.sqrt(2.0 * d * d - 1.0) * STRAIN_BOUND * bound
 
 
 def _select(positions, diameters, matrix, bound) -> Pairs | None:
