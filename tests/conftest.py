@@ -23,6 +23,13 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
     for _variable in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(_variable, str(WORKER_THREADS))
 
+#: Subprocesses that the tests start (the CLI, the examples, import checks) import this
+#: checkout, as the tests themselves do: an installed copy beside it would be a second copy of
+#: the generators, whose kernels Numba would compile and cache a second time.
+REPOSITORY = Path(__file__).resolve().parents[1]
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    [str(REPOSITORY), *filter(None, [os.environ.get("PYTHONPATH")])])
+
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
@@ -31,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # configurations.py, l
 from calippso.packing import minimum_image  # noqa: E402
 from configurations import overlap_free  # noqa: E402
 
-SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+SHARED_DATA = REPOSITORY.parent / "shared" / "data"
 
 #: Largest overlap accepted in a result, relative to σ_ij.
 OVERLAP_TOLERANCE = 1e-12

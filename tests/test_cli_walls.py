@@ -56,6 +56,7 @@ def test_generate_and_jam_keep_the_walls(walled):
     assert result.wall_loads[0, 0] == pytest.approx(-result.wall_loads[0, 1], rel=1e-10)
 
 
+@pytest.mark.slow
 def test_report_keeps_wall_forces_out_of_the_particle_forces(walled, tmp_path, capfd,
                                                              monkeypatch):
     pytest.importorskip("matplotlib")

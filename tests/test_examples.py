@@ -23,7 +23,7 @@ CASES = [
     # slow: the d = 5 path is jammed by the core tests; MLS, the report and the ensemble by
     # their own tests (test_generators_mls, test_reporting, test_ensemble)
     pytest.param(["ls_jam.py", "--d", "5"], "(isostatic)", marks=pytest.mark.slow),
-    (["random_start.py"], "(isostatic)"),
+    pytest.param(["random_start.py"], "(isostatic)", marks=pytest.mark.slow),
     (["polydisperse_lognormal.py"], "(isostatic)"),
     pytest.param(["mls_closest_jamming.py"], "CALiPPSO moved phi", marks=pytest.mark.slow),
     (["spherocylinders.py", "--out", "{tmp}", "--picture"], "spherocylinders.png"),

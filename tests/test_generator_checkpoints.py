@@ -300,8 +300,11 @@ QUENCH_KERNELS = {"fire": ("_fire", "fire_run", 15), "lbfgs": ("_lbfgs", "lbfgs_
 
 @pytest.mark.parametrize("minimiser", ["fire", "lbfgs"])
 @pytest.mark.parametrize("case, crash", [
-    ("d3", ("steps", 0.3)), ("d3", ("steps", 0.7)), ("d3", ("tightening", 3)),
-    ("d2_bidisperse", ("steps", 0.3)), ("d2_bidisperse", ("steps", 0.8))])
+    ("d3", ("steps", 0.3)),
+    pytest.param("d3", ("steps", 0.7), marks=pytest.mark.slow),
+    ("d3", ("tightening", 3)),
+    pytest.param("d2_bidisperse", ("steps", 0.3), marks=pytest.mark.slow),
+    pytest.param("d2_bidisperse", ("steps", 0.8), marks=pytest.mark.slow)])
 def test_quench_killed_mid_minimisation_resumes_bit_for_bit(tmp_path, monkeypatch, case,
                                                             crash, minimiser,
                                                             quench_references):

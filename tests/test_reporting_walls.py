@@ -194,6 +194,7 @@ def test_pictures_draw_the_walls(tmp_path, monkeypatch):
     assert len(_wall_lines(figures[-1])) == 4                # the outlines of four faces
 
 
+@pytest.mark.slow
 def test_the_walls_example_prints_a_layered_profile(tmp_path, monkeypatch, capsys):
     """examples/walls_layering.py --tiny: isostatic in its cylinder, sparse at the wall, the
     picture written (the tests/test_examples.py case runs it too)."""

@@ -41,20 +41,36 @@ CASES = {
 PHI_SPREAD = 0.015
 
 
+#: The cases of the fast suite; the others run with the slow tests.
+FAST_CASES = ("d2_bidisperse", "d3_mono")
+
+
+def _cases(names) -> list:
+    return [name if name in FAST_CASES else pytest.param(name, marks=pytest.mark.slow)
+            for name in names]
+
+
 @pytest.fixture(scope="module")
-def quenches() -> dict:
-    """Each case quenched with minimiser="newton" (Newton after `AFTER_STEPS` steps) and with
-    FIRE: name → (newton result, FIRE result)."""
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(quench_module, "NEWTON_AFTER_STEPS", AFTER_STEPS)
-        return {name: (generators.soft_quench(sizes, d, seed=seed, minimiser="newton"),
-                       generators.soft_quench(sizes, d, seed=seed, minimiser="fire"))
-                for name, (sizes, d, seed, _) in CASES.items()}
+def quenches():
+    """``quenches(name)``: the case quenched with minimiser="newton" (Newton after
+    `AFTER_STEPS` steps) and with FIRE, as (newton result, FIRE result); each made once."""
+    made: dict = {}
+
+    def quench(name: str) -> tuple:
+        if name not in made:
+            sizes, d, seed, _ = CASES[name]
+            with pytest.MonkeyPatch.context() as patch:
+                patch.setattr(quench_module, "NEWTON_AFTER_STEPS", AFTER_STEPS)
+                made[name] = (generators.soft_quench(sizes, d, seed=seed, minimiser="newton"),
+                              generators.soft_quench(sizes, d, seed=seed, minimiser="fire"))
+        return made[name]
+
+    return quench
 
 
-@pytest.mark.parametrize("name", CASES)
+@pytest.mark.parametrize("name", _cases(CASES))
 def test_newton_quench_converges_in_the_band_of_fire(quenches, name):
-    newton, fire = quenches[name]
+    newton, fire = quenches(name)
     low, high = CASES[name][3]
     assert "converged" in newton.status
     assert newton.extra["minimiser"] == "newton" and newton.extra["newton_solves"] > 0
@@ -64,9 +80,9 @@ def test_newton_quench_converges_in_the_band_of_fire(quenches, name):
     assert newton.extra["isostaticity_gap"] >= 0
 
 
-@pytest.mark.parametrize("name", ["d2_bidisperse", "d3_mono", "d3_lognormal"])
+@pytest.mark.parametrize("name", _cases(["d2_bidisperse", "d3_mono", "d3_lognormal"]))
 def test_jam_certifies_the_newton_network_with_no_lp(quenches, name):
-    newton, _ = quenches[name]
+    newton, _ = quenches(name)
     result = jam(newton.packing, network=newton.contacts)
     assert "lp" not in set(result.history["stage"]) and result.iterations == 0
     assert_jammed(result)

@@ -90,7 +90,9 @@ def _random_pair(rng, kind):
     return np.zeros(3), ui, li, rj, uj, lj
 
 
-@pytest.mark.parametrize("kind", ["generic", "near-parallel", "near-antiparallel", "parallel"])
+@pytest.mark.parametrize("kind", ["generic", "near-parallel",
+                                  pytest.param("near-antiparallel", marks=pytest.mark.slow),
+                                  pytest.param("parallel", marks=pytest.mark.slow)])
 def test_against_brute_force_sampling(kind):
     rng = np.random.default_rng(7)
     for _ in range(60):

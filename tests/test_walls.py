@@ -267,7 +267,8 @@ def test_a_loose_walled_start_has_no_network_to_certify():
 @pytest.mark.parametrize("boundaries, d, n", [
     (Boundaries.walls(3, [0]), 3, 128),
     (Boundaries.walls(2, [0, 1]), 2, 64),
-    (Boundaries.cylinder(3, (0, 1)), 3, 128),
+    # the cylinder (slow): its Newton stage is tested fast in test_cylinder.py
+    pytest.param(Boundaries.cylinder(3, (0, 1)), 3, 128, marks=pytest.mark.slow),
 ])
 def test_a_near_jammed_packing_in_a_container_is_certified_with_no_lp(boundaries, d, n):
     """A jammed packing in a container, moved by 1e-9 and shrunk by 1e-8, comes back to the
