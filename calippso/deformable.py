@@ -66,6 +66,11 @@ SAFE_REACH = 1.0 - 1e-9
 #: diameter): a pair vector of length |r| moves by at most 2 d STRAIN_BOUND b |r| by the
 #: strain in one step.
 STRAIN_BOUND = 1.0
+#: The strict rows have a floppy mode when the smallest eigenvalue of AᵀA is below this
+#: times its mean diagonal (as `calippso.categories.FLOPPY_EIGENVALUE`).
+FLOPPY_EIGENVALUE = 1e-12
+#: Up to this many columns the stiffness spectrum is computed densely.
+DENSE_STIFFNESS = 200
 #: The final search for touching pairs reaches this fraction beyond the largest diameter.
 NEAR_CONTACT = 1e-6
 #: Tolerances, condition limit (none) and iteration cap of the least-squares projection of
@@ -398,7 +403,7 @@ def _result(positions, diameters, matrix, scale, last, reason, history, start, p
         if n_stable == 0 or gap_count < 0 or balance > settings.balance_tolerance:
             reason = StopReason.NOT_RIGID
         else:
-            category = _strict_test(packing, np.stack([i, j], axis=1), rattlers, history)
+            category = _strict_test(packing, i, j, forces, rattlers, history)
             if category is not None and category != "strict":
                 reason = StopReason.NOT_RIGID
     status = status_sentence(reason, history.lps_solved, history.last_step(), n_stable,
@@ -413,14 +418,26 @@ def _result(positions, diameters, matrix, scale, last, reason, history, start, p
         phi_input=phi_input, box_mode="deformable", stress=stress, category=category)
 
 
-def _strict_test(packing: Packing, contacts: np.ndarray, rattlers: np.ndarray,
-                 history: History) -> str | None:
-    """The category of the final packing by the linear test of `calippso.categories`, on
-    the network and every other pair that touches (a note when it is not "strict"); None
-    when the test could not decide (a note says why)."""
+def _strict_test(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.ndarray,
+                 rattlers: np.ndarray, history: History) -> str | None:
+    """The jamming category of the final packing: "strict" from the network's own
+    certificate (`_floppy_strict_rows`), else from the linear test of `calippso.categories`
+    on the network and every other pair that touches (a note when it is not "strict");
+    None when that test could not decide (a note says why).
+
+    The certificate: the forces are positive on every contact and in balance with an
+    isotropic stress of positive pressure (`_final_network`), so by Stiemke's theorem no
+    first-order motion of the strict test opens a contact; when the strict rows have no
+    floppy mode either, the packing is strictly jammed (docs/theory.md, Jamming categories).
+    """
+    if np.all(forces > 0) and not _floppy_strict_rows(packing, i, j, rattlers):
+        history.note("strictly jammed: positive forces with an isotropic stress, and no "
+                     "floppy mode of the strict rows")
+        return "strict"
     from .categories import jamming_category
     from .touching import touching_outside_network
 
+    contacts = np.stack([i, j], axis=1)
     touching = touching_outside_network(packing, contacts, rattlers)
     every = JammingResult(packing=packing, contacts=np.concatenate([contacts, touching.pairs]),
                           forces=np.zeros(0), rattlers=rattlers, converged=False, status="",
@@ -435,6 +452,43 @@ def _strict_test(packing: Packing, contacts: np.ndarray, rattlers: np.ndarray,
         history.note(f"the linear test of strict jamming found an unjamming motion that "
                      f"{what} (failed class: {category.failed}): not strictly jammed")
     return category.category
+
+
+def _floppy_strict_rows(packing: Packing, i: np.ndarray, j: np.ndarray,
+                        rattlers: np.ndarray) -> bool:
+    """Whether the strict rows of the network (the contacts with the strain columns, and
+    the volume row) have a floppy mode: a motion of the stable particles (one pinned) and
+    the strain that keeps every row at zero. The smallest eigenvalue of AᵀA is zero, up to
+    `FLOPPY_EIGENVALUE` × its mean diagonal, exactly when one exists."""
+    from scipy.sparse.linalg import eigsh
+
+    n, d = packing.n, packing.d
+    k = strain_count(d)
+    stable = np.flatnonzero(~rattlers)
+    column = np.full(n, -1, dtype=np.int64)
+    column[stable] = d * np.arange(stable.size)
+    vectors = packing.minimum_image(packing.positions[i] - packing.positions[j])
+    distances = np.linalg.norm(vectors, axis=1)
+    normals = vectors / distances[:, None]
+    m, n_moves = i.shape[0], d * stable.size
+    axis = np.arange(d)
+    rows = np.concatenate([np.repeat(np.arange(m), d), np.repeat(np.arange(m), d),
+                           np.repeat(np.arange(m), k), [m]])
+    cols = np.concatenate([(column[i][:, None] + axis).ravel(),
+                           (column[j][:, None] + axis).ravel(),
+                           np.tile(n_moves + np.arange(k), m), [n_moves + k - 1]])
+    values = np.concatenate([normals.ravel(), -normals.ravel(),
+                             strain_coefficients(vectors, distances).ravel(), [-1.0]])
+    matrix = sp.csr_matrix((values, (rows, cols)), shape=(m + 1, n_moves + k))
+    free = np.setdiff1d(np.arange(n_moves + k), np.arange(d))    # the first stable pinned
+    stiffness = (matrix[:, free].T @ matrix[:, free]).tocsc()
+    scale = float(stiffness.diagonal().mean())
+    if free.size <= DENSE_STIFFNESS:
+        smallest = float(np.linalg.eigvalsh(stiffness.toarray())[0])
+    else:
+        smallest = float(eigsh(stiffness, k=1, sigma=-1e-3 * FLOPPY_EIGENVALUE * scale,
+                               which="LM", return_eigenvectors=False)[0])
+    return smallest <= FLOPPY_EIGENVALUE * scale
 
 
 def _final_network(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.ndarray,

@@ -117,7 +117,7 @@ import lattices  # noqa: E402
 from configurations import ls_packing  # noqa: E402
 
 from calippso import jam, jamming_category  # noqa: E402
-from calippso.deformable import strict_zero_modes  # noqa: E402
+from calippso.deformable import _floppy_strict_rows, strict_zero_modes  # noqa: E402
 
 #: Round-off tolerances of the checks (relative to the diameters, and to the mean force).
 OVERLAP_TOLERANCE = 1e-12
@@ -203,6 +203,7 @@ def test_a_random_packing_ends_strictly_jammed(d, n):
                                               seed=0).packing
     fixed = jam(start)
     assert jamming_category(fixed).category == "collective"   # isostatic: never strict
+    assert _floppy_strict_rows(fixed.packing, *fixed.contacts.T, fixed.rattlers)
     result = jam(start, box="deformable")
     assert_strictly_jammed(result)
     assert result.isostatic and result.isostaticity_gap == 0
