@@ -13,8 +13,9 @@ best of `--repeat` calls. Run from the repository root:
 
 Columns: d, N, seed; φ of the fixed-box and of the deformable run, their difference;
 the deformable run's LPs, isostaticity gap (strict count), stress anisotropy, force balance,
-whether it converged, whether `calippso.jamming_category` finds it strictly jammed (and the
-fixed-box result's category); the seconds of each run and their ratio.
+whether it converged, its category (`JammingResult.category`, "strict" when certified) and
+the fixed-box result's (`calippso.jamming_category`, not timed); the seconds of each run and
+their ratio.
 """
 
 from __future__ import annotations
@@ -68,7 +69,7 @@ def row(n: int, d: int, seed: int, pressure: float, repeat: int, cache: str | No
             "lps_fixed": fixed.iterations, "lps_deformable": deformable.iterations,
             "gap": deformable.isostaticity_gap, "anisotropy": deformable.stress_anisotropy,
             "balance": deformable.force_balance, "converged": deformable.converged,
-            "category": calippso.jamming_category(deformable).category,
+            "category": deformable.category or "",
             "category_fixed": calippso.jamming_category(fixed).category,
             "fixed_s": fixed_s, "deformable_s": deformable_s,
             "ratio": deformable_s / fixed_s}
