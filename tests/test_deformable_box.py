@@ -230,6 +230,12 @@ def test_deformable_box_refuses_what_it_does_not_run(tmp_path):
         jam(packing, box="deformable", checkpoint=tmp_path / "c.npz")
     with pytest.raises(ValueError, match="unknown box 'elastic'"):
         jam(packing, box="elastic")
+    from calippso import Boundaries
+
+    walled = Packing(packing.positions + [0.5, 0.0], packing.diameters,
+                     packing.box + [1.0, 0.0], Boundaries.walls(2, "x"))
+    with pytest.raises(ValueError, match="needs a periodic box"):
+        jam(walled, box="deformable")
 
 
 def test_cli_box_deformable_writes_the_box_and_the_stress(tmp_path):
