@@ -50,6 +50,7 @@ from .result import JammingResult
 from .settings import JamSettings
 from .sheared_search import half_shortest_vector, sheared_pairs_within
 from .solvers.policy import LPFailed, SolverPolicy, next_warm_start
+from .stages.lp_step import VANISHING_STEP_FRACTION
 from .step import BINDING_REDUCED_COST, at_bound
 from .walls import EMPTY_WALLS
 
@@ -62,6 +63,9 @@ DEFORMABLE_NOTE = ("deformable box: LP loop alone (no network-first, Newton or p
 #: A pair whose selection would reach this fraction of half the shortest box vector makes the
 #: bound halve (the minimum image must stay unique).
 SAFE_REACH = 1.0 - 1e-9
+#: Smallest first bound on displacements (mean diameters), as the fixed box's
+#: `calippso.ilp.INITIAL_STEP_FLOOR`.
+INITIAL_STEP_FLOOR = 1e-3
 #: Bound on every strain variable per unit of the step bound b (dimensionless per mean
 #: diameter): a pair vector of length |r| moves by at most 2 d STRAIN_BOUND b |r| by the
 #: strain in one step.
@@ -252,7 +256,8 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
     pinned = 0 if settings.pin else None
     gap = _median_gap(positions, diameters, matrix)
     bound = float(np.clip(settings.initial_step if settings.initial_step is not None
-                          else max(gap, 1e-3), settings.min_step, settings.max_step))
+                          else max(gap, INITIAL_STEP_FLOOR), settings.min_step,
+                          settings.max_step))
     basis, reason, last = None, StopReason.MAX_ITERS, None
 
     def current(x, sigma, h) -> Packing:
@@ -269,9 +274,10 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
             if pairs is not None:
                 break
             step *= 0.5
-            if step < settings.min_step * 1e-3:
+            if step < settings.min_step * VANISHING_STEP_FRACTION:
                 raise fail("box too small: even a vanishing step would need pairs beyond half "
                            "the shortest box vector")
+
         def build(b: float, selected=pairs, first=step) -> LinearProgram:
             rows = selected if b == first else _select(positions, diameters, matrix, b)
             return _build_lp(rows, n, d, b, pinned)
