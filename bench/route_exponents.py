@@ -28,7 +28,8 @@ import numpy as np
 
 import calippso
 from calippso.analysis import critical_exponents
-from routes import make_input, time_limit
+from routes import contact_keys, make_input, result_row, time_limit
+from routes import format_row as route_row
 
 #: The routes compared, in the order they run.
 ROUTES = ("lp", "relaxed")
@@ -41,12 +42,6 @@ def parse_seeds(words: list[str]) -> list[int]:
         first, _, last = word.partition("-")
         seeds.extend(range(int(first), int(last or first) + 1))
     return seeds
-
-
-def contact_keys(result: calippso.JammingResult) -> np.ndarray:
-    """The result's contacts as sorted keys i·N + j (i < j)."""
-    pairs = np.sort(result.contacts, axis=1)
-    return np.sort(pairs[:, 0] * result.packing.n + pairs[:, 1])
 
 
 def jam_one(packing: calippso.Packing, route: str, seed: int, keep: Path,
@@ -63,13 +58,7 @@ def jam_one(packing: calippso.Packing, route: str, seed: int, keep: Path,
         row = {"seed": seed, "route": route, "wall_time": time.perf_counter() - started,
                "converged": False, "refused": str(error)}
     else:
-        row = {"seed": seed, "route": route, "wall_time": time.perf_counter() - started,
-               "lps": result.iterations, "converged": result.converged,
-               "stop_reason": str(result.stop_reason.value), "phi_input": result.phi_input,
-               "phi_j": result.phi, "displacement_median": result.displacement_median,
-               "displacement_max": result.displacement_max, "contacts": result.n_contacts,
-               "isostaticity_gap": result.isostaticity_gap,
-               "force_balance": result.force_balance}
+        row = {"seed": seed, **result_row(result, route, time.perf_counter() - started)}
         result.save(result_path)
     row_path.write_text(json.dumps(row, indent=1))
     return row
@@ -86,13 +75,8 @@ def shared_contacts(seed: int, keep: Path) -> int | None:
 
 
 def format_row(row: dict) -> str:
-    if "refused" in row:
-        return f"seed {row['seed']:3d} {row['route']:8s} {row['wall_time']:7.1f} s  refused"
-    return (f"seed {row['seed']:3d} {row['route']:8s} {row['wall_time']:7.1f} s "
-            f"{row['lps']:4d} LPs {'jammed' if row['converged'] else row['stop_reason']:>10s} "
-            f"phi_J {row['phi_j']:.6f} (input {row['phi_input']:.6f}) displacement median "
-            f"{row['displacement_median']:.1e} max {row['displacement_max']:.1e} "
-            f"contacts {row['contacts']} shared {row.get('shared_contacts')}")
+    shared = "" if "refused" in row else f" shared {row.get('shared_contacts')}"
+    return f"seed {row['seed']:3d} {route_row(row)}{shared}"
 
 
 def summary(route: str, rows: list[dict], keep: Path) -> dict:

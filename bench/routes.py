@@ -77,18 +77,26 @@ def run_route(packing: calippso.Packing, route: str, limit: float,
     except calippso.JammingError as error:
         return {"route": route, "wall_time": time.perf_counter() - started, "refused": str(error),
                 "phi_input": packing.phi}, np.zeros(0, np.int64)
-    seconds = time.perf_counter() - started
-    keys = np.sort(result.contacts[:, 0] * packing.n + result.contacts[:, 1])
-    row = {"route": route, "wall_time": seconds, "lps": result.iterations,
-           "converged": result.converged, "stop_reason": str(result.stop_reason.value),
-           "phi_input": result.phi_input, "phi_j": result.phi,
-           "displacement_median": result.displacement_median,
-           "displacement_max": result.displacement_max, "contacts": result.n_contacts,
-           "isostaticity_gap": result.isostaticity_gap, "force_balance": result.force_balance,
-           "relax_time": (seconds - float(result.history["wall_time"][-1])
-                          if route != "lp" and result.route == "relaxed" else 0.0),
-           "notes": result.notes}
-    return row, keys
+    return result_row(result, route, time.perf_counter() - started), contact_keys(result)
+
+
+def result_row(result: calippso.JammingResult, route: str, seconds: float) -> dict:
+    """The row of one route's result that took `seconds` of wall time."""
+    return {"route": route, "wall_time": seconds, "lps": result.iterations,
+            "converged": result.converged, "stop_reason": str(result.stop_reason.value),
+            "phi_input": result.phi_input, "phi_j": result.phi,
+            "displacement_median": result.displacement_median,
+            "displacement_max": result.displacement_max, "contacts": result.n_contacts,
+            "isostaticity_gap": result.isostaticity_gap, "force_balance": result.force_balance,
+            "relax_time": (seconds - float(result.history["wall_time"][-1])
+                           if route != "lp" and result.route == "relaxed" else 0.0),
+            "notes": result.notes}
+
+
+def contact_keys(result: calippso.JammingResult) -> np.ndarray:
+    """The result's contacts as sorted keys i·N + j (i < j)."""
+    pairs = np.sort(result.contacts, axis=1)
+    return np.sort(pairs[:, 0] * result.packing.n + pairs[:, 1])
 
 
 def compare(packing: calippso.Packing, routes: list[str], limit: float,
@@ -108,7 +116,9 @@ def compare(packing: calippso.Packing, routes: list[str], limit: float,
 def format_row(row: dict) -> str:
     if "refused" in row:
         return f"{row['route']:8s} {row['wall_time']:8.1f} s  refused: {row['refused']}"
-    return (f"{row['route']:8s} {row['wall_time']:8.1f} s (relaxation {row['relax_time']:.1f} s) "
+    # rows saved before the relaxation was timed have no "relax_time"
+    relaxation = row.get("relax_time", 0.0)
+    return (f"{row['route']:8s} {row['wall_time']:8.1f} s (relaxation {relaxation:.1f} s) "
             f"{row['lps']:4d} LPs "
             f"{'jammed' if row['converged'] else row['stop_reason']:>10s} "
             f"phi_J {row['phi_j']:.6f} (input {row['phi_input']:.6f}) "
