@@ -453,6 +453,9 @@ def _strict_test(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.ndar
     except (RuntimeError, ValueError) as error:   # the test's LP failed, or a refusal
         history.note(f"strict jamming not verified: {error}")
         return None
+    if category.category == "strict" and not np.all(forces > 0):
+        history.note("strictly jammed by the linear test; the balanced forces found on the "
+                     "network are not all positive, so they are no certificate of it")
     if category.category != "strict":
         what = "opens contacts" if category.opens_contacts else "keeps every contact closed"
         history.note(f"the linear test of strict jamming found an unjamming motion that "
