@@ -139,11 +139,13 @@ class JammingResult:
         strain was in every LP; `isostatic` then counts strictly, docs/theory.md).
     stress : ndarray, shape (d, d), or None
         The contact stress tensor Σ_k f_k |r_k| n_k n_kᵀ / V (forces of mean 1, per unit
-        volume of the caller's length units); set by deformable runs, None otherwise.
-        Isotropic at a strictly jammed point (`stress_anisotropy`).
+        volume of the caller's length units) that a deformable run certified; None otherwise
+        (`contact_stress` computes it for any periodic result). Isotropic at a strictly
+        jammed point (`stress_anisotropy`).
     category : str or None
-        The jamming category (`calippso.jamming_category`) that a deformable run found for
-        its final packing ("strict" when it converged); None when not tested.
+        The jamming category (`calippso.jamming_category`) of the final packing: found by a
+        deformable run ("strict" when it converged) or by ``calippso jam --category``;
+        None when not tested.
     """
 
     packing: Packing
@@ -264,17 +266,37 @@ class JammingResult:
         return self.cylinder_load / float(area)
 
     @property
+    def contact_stress(self) -> np.ndarray | None:
+        """The contact stress tensor Σ_k f_k |r_k| n_k n_kᵀ / V, shape (d, d) (forces of
+        mean 1, per unit volume): `stress` when the run set it, otherwise computed from
+        `contacts` and `forces` in a periodic box. None in a container (the walls carry
+        part of the load) or without one force per contact."""
+        if self.stress is not None:
+            return self.stress
+        if (not self.packing.boundaries.is_periodic or not self.contacts.shape[0]
+                or self.forces.shape[0] != self.contacts.shape[0]):
+            return None
+        vectors = self.contact_vectors
+        distances = np.linalg.norm(vectors, axis=1)
+        stress = np.einsum("k,ka,kb->ab", self.forces / distances, vectors, vectors)
+        return 0.5 * (stress + stress.T) / self.packing.volume
+
+    @property
     def pressure(self) -> float:
-        """tr(`stress`)/d, the virial pressure of the contact forces; NaN without a stress."""
-        return float("nan") if self.stress is None else float(np.trace(self.stress)) / self.d
+        """tr(`contact_stress`)/d, the virial pressure of the contact forces; NaN without a
+        stress."""
+        stress = self.contact_stress
+        return float("nan") if stress is None else float(np.trace(stress)) / self.d
 
     @property
     def stress_anisotropy(self) -> float:
-        """max |stress − p I| / p: zero up to round-off at a strictly jammed point; NaN
+        """max |stress − p I| / p of `contact_stress`: zero up to round-off at a strictly
+        jammed point, a few per cent at a jamming point of a fixed box (N = 1024); NaN
         without a stress."""
-        if self.stress is None or not self.pressure > 0:
+        stress, pressure = self.contact_stress, self.pressure
+        if stress is None or not pressure > 0:
             return float("nan")
-        return float(np.abs(self.stress - self.pressure * np.eye(self.d)).max() / self.pressure)
+        return float(np.abs(stress - pressure * np.eye(self.d)).max() / pressure)
 
     @property
     def rattler_fraction(self) -> float:
@@ -339,11 +361,15 @@ class JammingResult:
                          f"of stable particles{walls} (gap <= {TOUCHING_GAP:g}), zero force "
                          f"in the certificate; counted as contacts the isostaticity gap "
                          f"would be {self.isostaticity_gap + len(touching):+d}")
-        if self.stress is not None:
-            category = "" if self.category is None else f"category = {self.category}; "
-            lines.append(f"  box = {self.box_mode}; {category}pressure = {self.pressure:.6g}, stress "
-                         f"anisotropy = {self.stress_anisotropy:.1e}; stress = "
-                         f"{np.array2string(self.stress, precision=6, separator=', ')}"
+        category = "not tested" if self.category is None else self.category
+        stress = self.contact_stress
+        if stress is None:
+            lines.append(f"  box = {self.box_mode}; category = {category}")
+        else:
+            lines.append(f"  box = {self.box_mode}; category = {category}; pressure = "
+                         f"{self.pressure:.6g}, stress anisotropy = "
+                         f"{self.stress_anisotropy:.1e}; stress = "
+                         f"{np.array2string(stress, precision=6, separator=', ')}"
                          .replace("\n", ""))
         if self.route:
             lines.append(f"  route = {self.route}; from the input: max displacement = "

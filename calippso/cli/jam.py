@@ -34,8 +34,10 @@ def _contacts_of(path: Path) -> np.ndarray:
 
 
 def jam_record(result, source, output: Path | None) -> dict:
-    """The JSON record of a jamming run: its input, `calippso.analysis.record.run_record`,
-    the boundaries and wall contacts, and the output path."""
+    """The JSON record of a jamming run: its input, `calippso.analysis.record.run_record`
+    (with the box, the jamming category, the pressure and the stress anisotropy), the
+    stress tensor (`JammingResult.contact_stress`), the box matrix of a deformable run, the
+    boundaries and wall contacts, and the output path."""
     from ..analysis.record import run_record
 
     return {
@@ -48,13 +50,10 @@ def jam_record(result, source, output: Path | None) -> dict:
         "displacement_max": result.displacement_max,
         "displacement_median": result.displacement_median,
         "phi_change": result.phi_change,
-        "box": result.box_mode,
-        **({} if result.stress is None else {
-            "box_matrix": result.packing.lattice.tolist(),
-            "stress": result.stress.tolist(),
-            "pressure": result.pressure,
-            "stress_anisotropy": result.stress_anisotropy,
-            "category": result.category}),
+        "stress": (None if result.contact_stress is None
+                   else result.contact_stress.tolist()),
+        **({} if result.box_mode == "fixed" and not result.packing.is_sheared else {
+            "box_matrix": result.packing.lattice.tolist()}),
         "output": None if output is None else str(output),
     }
 
@@ -159,12 +158,19 @@ def jam_record(result, source, output: Path | None) -> dict:
     "not grow) is in every LP too, towards a strictly jammed packing (LP loop alone; "
     "write .npz or .h5 to keep a sheared box).",
 )
+@click.option(
+    "--category",
+    "test_category",
+    is_flag=True,
+    help="Run the jamming-category test (local, collective, strict) on the result and keep "
+    "it in OUTPUT, the summary and --json (a deformable run tests its result anyway).",
+)
 @checkpoint_option
 @container_options
 @output_options
 def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters, time_limit,
         precompress_pressure, network_first, pivots, network_path, route, max_displacement,
-        box_mode, checkpoint, container, out):
+        box_mode, test_category, checkpoint, container, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
@@ -205,6 +211,9 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
             max_displacement=max_displacement,
             **({"box": box_mode} if box_mode != "fixed" else {}),
         )
+        if test_category and result.category is None:
+            strongest = "strict" if result.packing.boundaries.periodic.any() else "collective"
+            result.category = calippso.jamming_category(result, up_to=strongest).category
     with naming(output):
         written = calippso.write(result, output)
     record = jam_record(result, input_path, written)

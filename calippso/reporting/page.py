@@ -93,6 +93,7 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
                 lines.append(f"* {symbol}: " + ", ".join(
                     f"{row['upper']:.2g}: {row['power_law']:.3f} / {row['cutoff']:.3f} "
                     f"({row['points']}, p = {row['p_value']:.2g})" for row in rows))
+    lines += _stress_section(summary)
     if "walls" in summary:
         lines += _walls_section(summary["walls"], figures["walls"])
     lines += ["", "## Distributions", "",
@@ -105,6 +106,27 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
                   enumerate(histories)]
         lines.append("")
     return "\n".join(lines)
+
+
+def _stress_section(summary: dict) -> list[str]:
+    """The "Box, stress and jamming category" section: the count of runs per category,
+    then one row per run (box, category, pressure, stress anisotropy, stress tensor)."""
+    counts = ", ".join(f"{name}: {count}" for name, count in summary["categories"].items())
+    lines = ["", "## Box, stress and jamming category", "",
+             f"Jamming categories (local, collective, strict; `calippso.jamming_category`): "
+             f"{counts}. Contact stress Σ f |r| n nᵀ / V with forces of mean 1; the "
+             "anisotropy is max |stress − p I| / p (zero at a strictly jammed point).", "",
+             "| run | box | category | pressure | stress anisotropy | stress |",
+             "|---|---|---|---|---|---|"]
+    for k, run in enumerate(summary["runs"]):
+        stress = ("—" if run["stress"] is None else
+                  "[" + "; ".join(" ".join(f"{value:.4g}" for value in row)
+                                  for row in run["stress"]) + "]")
+        anisotropy = run["stress_anisotropy"]
+        lines.append(f"| {k} | {run['box']} | {run['category'] or 'not tested'} | "
+                     f"{_fmt(run['pressure'], 6)} | "
+                     f"{'—' if anisotropy is None else f'{anisotropy:.1e}'} | {stress} |")
+    return lines
 
 
 def _walls_section(walls: dict, figure: Path) -> list[str]:

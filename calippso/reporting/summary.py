@@ -12,9 +12,11 @@ import numpy as np
 from ..analysis import Analysis
 from ..analysis.exponents import REFERENCE_EXPONENTS
 from ..analysis.record import run_record
+from ..categories import CATEGORIES
 from ..result import JammingResult
 
-__all__ = ["fit_warnings", "run_record", "summary_dict", "write_json"]
+__all__ = ["category_counts", "fit_warnings", "run_record", "summary_dict",
+           "write_json"]
 
 
 def fit_warnings(analysis: Analysis) -> list[str]:
@@ -23,9 +25,27 @@ def fit_warnings(analysis: Analysis) -> list[str]:
 
 
 def summary_dict(analysis: Analysis, results: list[JammingResult]) -> dict:
-    """Everything the JSON summary holds, with the fit warnings under "warnings"."""
+    """Everything the JSON summary holds, with the fit warnings under "warnings": the pooled
+    analysis, then one record per run (`run_record`, plus its contact stress tensor as
+    nested lists, None in a container) and the count of runs per jamming category."""
+    runs = [{**run_record(r), "stress": _stress(r)} for r in results]
     return {**analysis.to_dict(), "reference_exponents": dict(REFERENCE_EXPONENTS),
-            "warnings": fit_warnings(analysis), "runs": [run_record(r) for r in results]}
+            "warnings": fit_warnings(analysis), "runs": runs,
+            "categories": category_counts(results)}
+
+
+def category_counts(results: list[JammingResult]) -> dict[str, int]:
+    """How many runs are in each jamming category ("not tested" for `category` None), in
+    the order not tested, not jammed, local, collective, strict; absent categories left
+    out."""
+    order = ["not tested", *CATEGORIES]
+    names = ["not tested" if r.category is None else r.category for r in results]
+    return {name: names.count(name) for name in order if name in names}
+
+
+def _stress(result: JammingResult) -> list[list[float]] | None:
+    stress = result.contact_stress
+    return None if stress is None else stress.tolist()
 
 
 def _strict(value):
