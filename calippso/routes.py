@@ -168,8 +168,9 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
     Raises
     ------
     JammingError
-        One line, when a route moved a particle further than `max_displacement` (the
-        relaxed route before it runs the loop, when the relaxation did).
+        One line, when a route moved a particle further than `max_displacement`. The
+        relaxation stops as soon as a particle lies that far from the input
+        (`generators.relax`), and the relaxed route then refuses without running the loop.
     """
     started = time.perf_counter()
     check_route(route, max_displacement, network)
@@ -179,12 +180,10 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
                         max_displacement)
     limit = DEFAULT_MAX_DISPLACEMENT if max_displacement is None else max_displacement
     relaxed_at = time.perf_counter()
-    relaxation = _relax(packing, checkpoint)
+    relaxation = _relax(packing, checkpoint, limit)
     relaxing = time.perf_counter() - relaxed_at
-    moved = relaxation.extra["max_displacement"]
-    if moved > limit:
-        message = (f"the relaxed route moved a particle by {moved:.3g} mean diameters, more "
-                   f"than max_displacement = {limit:g}")
+    if relaxation.extra["max_displacement"] > limit:
+        message = _too_far(relaxation.extra, limit, len(relaxation.history))
         if route == "relaxed":
             raise JammingError(f"{message}; raise max_displacement or take route='lp'",
                                packing=packing)
@@ -204,11 +203,22 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
     return _bounded(result, limit)
 
 
-def _relax(packing: Packing, checkpoint: str | os.PathLike | None):
-    """`generators.relax` of the input (imported here: the generators load numba)."""
+def _relax(packing: Packing, checkpoint: str | os.PathLike | None, limit: float):
+    """`generators.relax` of the input, stopped once a particle lies further than `limit`
+    from it (imported here: the generators load numba)."""
     from generators import relax
 
-    return relax(packing, checkpoint=relaxed_checkpoint(checkpoint))
+    return relax(packing, checkpoint=relaxed_checkpoint(checkpoint), max_displacement=limit)
+
+
+def _too_far(relaxed: dict, limit: float, begun: int) -> str:
+    """Why a relaxation (its `extra`, `begun` rungs of its ladder begun) is refused."""
+    rungs = relaxed["rungs"]
+    when = (f"the relaxation stopped there, at pressure {rungs[begun - 1]:.0e}, rung "
+            f"{begun} of {len(rungs)}" if relaxed["halted"] else "at the end of the relaxation")
+    return (f"the relaxed route moved particle {relaxed['farthest']} by "
+            f"{relaxed['max_displacement']:.3g} mean diameters, more than max_displacement = "
+            f"{limit:g} ({when})")
 
 
 def _recorded(result: JammingResult, packing: Packing, route: str) -> JammingResult:

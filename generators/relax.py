@@ -38,7 +38,7 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
           target_pressure: float | None = None, force_tolerance: float = 1e-6,
           progress: bool = False, skin: float = 0.2, max_steps: int = 50_000_000,
           checkpoint: str | os.PathLike | None = None, checkpoint_every: float = 60.0,
-          minimiser: str = "auto") -> GenerationResult:
+          minimiser: str = "auto", max_displacement: float | None = None) -> GenerationResult:
     """Relax a configuration as harmonic soft spheres to a vanishing pressure, then shrink
     it to hard contact, in its own box.
 
@@ -49,6 +49,9 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     of `target_pressure`, and the last minimum is tightened and shrunk to hard contact
     exactly as in `soft_quench` (same minimisers, same convergence tests, same shrink). The
     common translation of the particles along the periodic axes is taken out at the end.
+    Given `max_displacement`, the relaxation stops as soon as a particle lies further than
+    that from its place in the input (checked every 1000 minimiser steps and at every list
+    rebuild), and returns the state it reached, shrunk to hard contact.
 
     Parameters
     ----------
@@ -65,7 +68,12 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
         As in `soft_quench`.
     checkpoint : str or PathLike, optional
         File (``.npz``) of the run's state, written and resumed as in `soft_quench`; it
-        belongs to this input and these options.
+        belongs to this input and these options (`max_steps` and `max_displacement` aside:
+        a run they stopped continues from it with larger ones).
+    max_displacement : float, optional
+        Stop once a particle lies further than this from the input (mean diameters of the
+        input; minimum image, common translation along the periodic axes taken out). The
+        status then names the particle and its distance. None: no bound.
 
     Returns
     -------
@@ -76,15 +84,19 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
         (rattlers removed): ``calippso.jam(result.packing, network=result.contacts)``
         certifies it. `extra` adds ``start_pressure``, ``phi_input`` (φ of the input),
         ``max_displacement`` and ``median_displacement`` (of the particles from the input,
-        minimum image, common translation taken out, in mean diameters of the input) and
-        ``translation`` (the common translation taken out, shape (d,), length units).
+        minimum image, common translation taken out, in mean diameters of the input),
+        ``farthest`` (the particle that moved furthest) and
+        ``translation`` (the common translation taken out, shape (d,), length units);
+        ``rungs`` (pressures of the ladder) and ``halted`` (True when `max_displacement`
+        stopped the run: `history` then holds the rungs it began, the last one unfinished).
 
     Raises
     ------
     ValueError
-        On a packing that is not a `calippso.Packing`, non-positive pressures, tolerance or
-        skin, a start pressure below the target, a non-positive max_steps, too few
-        particles for the box, or a checkpoint file that belongs to another run.
+        On a packing that is not a `calippso.Packing`, non-positive pressures, tolerance,
+        skin or `max_displacement`, a start pressure below the target, a non-positive
+        max_steps, too few particles for the box, or a checkpoint file that belongs to
+        another run.
     """
     wall = time.perf_counter()
     if not isinstance(packing, Packing):
@@ -94,6 +106,8 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     target_pressure, force_tolerance, skin, minimiser = check_quench_options(
         n, d, boundaries, target_pressure, force_tolerance, skin, max_steps, minimiser)
     start_pressure = check_positive(start_pressure, "start_pressure")
+    if max_displacement is not None:
+        max_displacement = check_positive(max_displacement, "max_displacement")
     if start_pressure < target_pressure:
         raise ValueError(f"start_pressure {start_pressure:g} is below target_pressure "
                          f"{target_pressure:g}")
@@ -114,9 +128,42 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
                           boundaries.cylinder_axes)
     run = _Run(_pressure_ladder(TARGET_AIM * target_pressure, start_pressure),
                force_tolerance, max_steps)
+    watch = None if max_displacement is None else _Bound(start, box, boundaries.periodic,
+                                                         max_displacement)
     result = quench_and_shrink(system, run, saver, packing.diameters, boundaries,
-                               target_pressure, progress, wall, box=packing.box)
+                               target_pressure, progress, wall, box=packing.box, watch=watch)
+    result.extra.update(rungs=run.ladder.copy(),
+                        halted=watch is not None and watch.reason is not None)
     return _aligned(result, packing, start_pressure)
+
+
+class _Bound:
+    """The watch of a bounded relaxation (`quench_and_shrink`): the reason to stop once a
+    particle lies further than `limit` from `start`.
+
+    Parameters
+    ----------
+    start : ndarray, shape (N, d)
+        The input's positions (mean diameters).
+    box : ndarray, shape (d,)
+        Box sides (mean diameters).
+    periodic : ndarray, shape (d,), bool
+    limit : float
+        Largest distance from `start` (mean diameters).
+    """
+
+    def __init__(self, start: np.ndarray, box: np.ndarray, periodic: np.ndarray,
+                 limit: float) -> None:
+        self.start, self.box, self.periodic, self.limit = start, box, periodic, limit
+        self.reason: str | None = None
+
+    def __call__(self, system: _SoftSpheres) -> str | None:
+        lengths, _ = displacements(self.start, system.positions(), self.box, self.periodic)
+        farthest = int(np.argmax(lengths))
+        if lengths[farthest] > self.limit:
+            self.reason = (f"particle {farthest} lies {lengths[farthest]:.3g} mean diameters "
+                           f"from the input, more than max_displacement = {self.limit:g}")
+        return self.reason
 
 
 def _aligned(result: GenerationResult, packing: Packing,
@@ -132,6 +179,7 @@ def _aligned(result: GenerationResult, packing: Packing,
     result.extra.update(start_pressure=start_pressure, phi_input=packing.phi,
                         diameter_factor=float(relaxed.diameters.mean()) / mean,
                         max_displacement=float(lengths.max()) / mean,
+                        farthest=int(np.argmax(lengths)),
                         median_displacement=float(np.median(lengths)) / mean,
                         translation=translation)
     return result

@@ -104,6 +104,9 @@ NEWTON_PHASE_SOLVES = 40
 #: `NEWTON_PHASE`), the steps taken in it, then its kernel's state from `PHASE_STATE` on.
 PHASE, PHASE_TAKEN, PHASE_STATE = 0, 1, 2
 BASE_PHASE, NEWTON_PHASE = 0.0, 1.0
+#: Code of a quench that its watch stopped (`quench_and_shrink`), beside the kernels' codes
+#: (`_fire.CONVERGED`, `_fire.REBUILD`, `_fire.OUT_OF_STEPS`).
+HALTED = 3
 #: The minimisers `soft_quench` offers ("auto" picks one by the dimension).
 MINIMISERS = ("auto", "fire", "lbfgs", "newton")
 #: Where each minimiser's state array holds λ = ln a.
@@ -290,7 +293,7 @@ class _SoftSpheres(Resumable):
         self.method = state
 
     def minimise(self, pressure: float, tolerance: float, max_steps: int,
-                 pause: Callable[[bool], None] | None = None) -> tuple[int, float]:
+                 pause: Callable[[bool], bool] | None = None) -> tuple[int, float]:
         """Minimise the enthalpy at fixed pressure, from rest, until converged or out of steps.
 
         A minimisation restored from a checkpoint in progress (`restore`) continues where it
@@ -310,12 +313,13 @@ class _SoftSpheres(Resumable):
         pause : callable, optional
             Called as ``pause(stopped)`` after every list rebuild and every `PAUSE_STEPS`
             steps, where the state is complete (`state`); `stopped` is True when the steps
-            ran out, and the minimisation then returns as it stands.
+            ran out, and the minimisation then returns as it stands. When it returns True
+            the minimisation returns as it stands too, with the code `HALTED`.
 
         Returns
         -------
         code : int
-            `_fire.CONVERGED` or `_fire.OUT_OF_STEPS`.
+            `_fire.CONVERGED`, `_fire.OUT_OF_STEPS` or `HALTED`.
         pressure : float
             Pressure at the end.
         """
@@ -349,8 +353,8 @@ class _SoftSpheres(Resumable):
             if code == _fire.REBUILD:
                 self._adapt_skin()
                 self.rebuild()
-            if pause is not None:
-                pause(stopped)
+            if pause is not None and pause(stopped) and not stopped:
+                code, stopped = HALTED, True
             if stopped:
                 break
         self.steps += self.taken
@@ -677,8 +681,9 @@ def check_quench_options(n: int, d: int, boundaries: Boundaries,
 
 def quench_and_shrink(system: _SoftSpheres, run: "_Run", saver: Checkpoint,
                       diameters: np.ndarray, boundaries: Boundaries, target_pressure: float,
-                      progress: bool, wall: float,
-                      box: np.ndarray | None = None) -> GenerationResult:
+                      progress: bool, wall: float, box: np.ndarray | None = None,
+                      watch: Callable[[_SoftSpheres], str | None] | None = None
+                      ) -> GenerationResult:
     """Walk `system` down the ladder of `run` (resuming from `saver`'s checkpoint, saving
     to it), then shrink it to hard contact (`_shrunk_result`).
 
@@ -702,18 +707,27 @@ def quench_and_shrink(system: _SoftSpheres, run: "_Run", saver: Checkpoint,
     box : ndarray, shape (d,), optional
         Keep this box (the caller's units) and scale the diameters by one factor instead
         (`generators.relax`); None: keep the diameters and size the box.
+    watch : callable, optional
+        ``watch(system)`` at every pause of a minimisation (`_SoftSpheres.minimise`):
+        None to go on, or the reason to stop the quench there, in words. A stopped quench
+        is saved to the checkpoint and shrunk as it stands; its status gives the reason.
     """
     earlier_wall = 0.0
+    halted_by: list[str] = []
     saved = saver.load()
     if saved is not None:
         system.restore(saved)
         run.restore(saved)
         earlier_wall = float(saved["wall_time"])
 
-    def pause(stopped: bool) -> None:
-        if saver.enabled and (stopped or saver.due()):
+    def pause(stopped: bool) -> bool:
+        reason = None if stopped or watch is None else watch(system)
+        if reason is not None:
+            halted_by.append(reason)
+        if saver.enabled and (stopped or reason is not None or saver.due()):
             saver.save({**system.state(), **run.state(),
                         "wall_time": earlier_wall + time.perf_counter() - wall})
+        return reason is not None
 
     bar = Progress(progress, -np.log10(run.ladder[-1]), "soft quench -log10(p)")
     try:
@@ -722,6 +736,8 @@ def quench_and_shrink(system: _SoftSpheres, run: "_Run", saver: Checkpoint,
         bar.close()
     if code == _fire.OUT_OF_STEPS:
         status = f"stopped at max_steps = {run.max_steps} (pressure {pressure:.3g})"
+    elif code == HALTED:
+        status = f"stopped at pressure {pressure:.3g}: {halted_by[-1]}"
     else:
         status = f"converged at pressure {pressure:.3g} <= target {target_pressure:.3g}"
         pause(True)
@@ -784,14 +800,15 @@ class _Run:
             tolerance = max(tolerance / 10.0, self.force_tolerance)
         return tolerance
 
-    def quench(self, system: _SoftSpheres, pause: Callable[[bool], None],
+    def quench(self, system: _SoftSpheres, pause: Callable[[bool], bool],
                bar: Progress) -> tuple[int, float]:
         """Run the remaining minimisations: every rung of the ladder, the last one tightened.
 
         Returns
         -------
         code : int
-            `_fire.CONVERGED`, or `_fire.OUT_OF_STEPS` when `max_steps` ran out.
+            `_fire.CONVERGED`, `_fire.OUT_OF_STEPS` when `max_steps` ran out, or `HALTED`
+            when `pause` stopped a minimisation.
         pressure : float
             Pressure at the end.
         """
@@ -804,7 +821,7 @@ class _Run:
             self.rows.append((system.steps, system.phi, self.pressure, np.nan))
             bar.update(-np.log10(self.pressure), phi=f"{system.phi:.6f}",
                        p=f"{self.pressure:.3g}")
-            if code == _fire.OUT_OF_STEPS:      # (its checkpoint holds the minimisation)
+            if code != _fire.CONVERGED:     # (its checkpoint holds the minimisation)
                 return code, self.pressure
             self.rung, self.round = self.rung + 1, 0
         return _fire.CONVERGED, self.pressure

@@ -17,6 +17,7 @@ from calippso import Boundaries, JammingError
 from calippso.periodic import displacements
 from calippso.routes import DEFAULT_MAX_DISPLACEMENT, lp_route_slow
 from generators import diameters as dist
+from generators.soft_quench import PAUSE_STEPS
 
 from conftest import assert_jammed
 from test_cylinder import assert_jammed_in_a_cylinder
@@ -110,10 +111,30 @@ def test_auto_keeps_a_small_input_on_the_lp_route(spheres):
     assert result.route == "lp" and not any("route" in note for note in result.notes)
 
 
-def test_a_route_that_moves_too_far_is_refused(spheres):
-    with pytest.raises(JammingError, match="more than max_displacement = 0.0001") as caught:
+def test_a_relaxation_that_moves_too_far_stops_at_once(spheres):
+    relaxed = generators.relax(spheres, max_displacement=1e-4)
+    assert relaxed.extra["halted"] and relaxed.extra["max_displacement"] > 1e-4
+    # stopped at the first pause of the first of its four minimisations
+    assert len(relaxed.history) == 1 and len(relaxed.extra["rungs"]) == 4
+    assert relaxed.steps <= PAUSE_STEPS
+    assert f"particle {relaxed.extra['farthest']} lies" in relaxed.status
+
+
+def test_a_route_that_moves_too_far_is_refused_before_the_ladder_ends(spheres):
+    with pytest.raises(JammingError, match=r"more than max_displacement = 0\.0001 \(the "
+                       r"relaxation stopped there, at pressure 1e-04, rung 1 of 4\)") as caught:
         calippso.jam(spheres, route="relaxed", max_displacement=1e-4)
     assert "\n" not in str(caught.value)
+
+
+def test_a_stopped_relaxation_continues_from_its_checkpoint(spheres, tmp_path):
+    path = tmp_path / "relax.npz"
+    assert generators.relax(spheres, checkpoint=path, max_displacement=1e-4).extra["halted"]
+    resumed = generators.relax(spheres, checkpoint=path)
+    whole = generators.relax(spheres)
+    assert resumed.extra["resumed"] and not resumed.extra["halted"]
+    np.testing.assert_array_equal(resumed.packing.positions, whole.packing.positions)
+    np.testing.assert_array_equal(resumed.packing.diameters, whole.packing.diameters)
 
 
 @pytest.mark.parametrize("route, options, message", [
