@@ -15,7 +15,9 @@ Columns: d, N, seed; φ of the fixed-box and of the deformable run, their differ
 the deformable run's LPs, isostaticity gap (strict count), stress anisotropy, force balance,
 whether it converged, its category (`JammingResult.category`, "strict" when certified) and
 the fixed-box result's (`calippso.jamming_category`, not timed); the seconds of each run and
-their ratio.
+their ratio; then, for each run, where its LP time goes: the LPs solved cold (interior
+point), their seconds, the seconds of the warm ones (simplex from the last basis), and the
+mean rows per LP.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ import argparse
 import json
 import time
 from pathlib import Path
+
+import numpy as np
 
 import generators
 import calippso
@@ -59,6 +63,17 @@ def timed(packing, repeat: int, **options):
     return best
 
 
+def lp_profile(result) -> dict:
+    """Where a run's LP time goes: the LPs solved cold (interior point) and warm (simplex
+    from the last basis), the seconds of each, the mean rows per LP."""
+    history = result.history
+    lp = np.isin(history["stage"], ("lp", "cleanup"))
+    cold = lp & (history["ipm_iterations"] > 0)
+    return {"cold_lps": int(cold.sum()), "cold_s": float(history["solver_time"][cold].sum()),
+            "warm_s": float(history["solver_time"][lp & ~cold].sum()),
+            "rows": float(history["rows"][lp].mean()) if lp.any() else 0.0}
+
+
 def row(n: int, d: int, seed: int, pressure: float, repeat: int, cache: str | None) -> dict:
     """Both runs of one case (see the module docstring for the columns)."""
     packing = start(n, d, seed, pressure, cache)
@@ -72,7 +87,9 @@ def row(n: int, d: int, seed: int, pressure: float, repeat: int, cache: str | No
             "category": deformable.category or "",
             "category_fixed": calippso.jamming_category(fixed).category,
             "fixed_s": fixed_s, "deformable_s": deformable_s,
-            "ratio": deformable_s / fixed_s}
+            "ratio": deformable_s / fixed_s,
+            **{f"{key}_fixed": value for key, value in lp_profile(fixed).items()},
+            **{f"{key}_deformable": value for key, value in lp_profile(deformable).items()}}
 
 
 def main() -> None:
@@ -86,7 +103,9 @@ def main() -> None:
     args = parser.parse_args()
     print(f"{'d':>2} {'N':>5} {'seed':>4} {'phi fixed':>9} {'phi def.':>9} {'gain':>8} "
           f"{'LPs f':>5} {'LPs d':>5} {'gap':>4} {'aniso':>7} {'balance':>7} {'conv':>5} "
-          f"{'category':>10} {'fixed cat.':>10} {'fixed s':>8} {'def. s':>8} {'ratio':>6}")
+          f"{'category':>10} {'fixed cat.':>10} {'fixed s':>8} {'def. s':>8} {'ratio':>6} "
+          f"{'cold f':>6} {'cold d':>6} {'cold s f':>8} {'cold s d':>8} {'warm s f':>8} "
+          f"{'warm s d':>8} {'rows f':>7} {'rows d':>7}")
     rows = []
     for case in args.cases:
         d, n = (int(part) for part in case.split(":"))
@@ -97,8 +116,11 @@ def main() -> None:
                   f"{r['phi_gain']:>8.1e} {r['lps_fixed']:>5} {r['lps_deformable']:>5} "
                   f"{r['gap']:>4} {r['anisotropy']:>7.0e} {r['balance']:>7.0e} "
                   f"{str(r['converged']):>5} {r['category']:>10} {r['category_fixed']:>10} "
-                  f"{r['fixed_s']:>8.2f} {r['deformable_s']:>8.2f} {r['ratio']:>6.2f}",
-                  flush=True)
+                  f"{r['fixed_s']:>8.2f} {r['deformable_s']:>8.2f} {r['ratio']:>6.2f} "
+                  f"{r['cold_lps_fixed']:>6} {r['cold_lps_deformable']:>6} "
+                  f"{r['cold_s_fixed']:>8.1f} {r['cold_s_deformable']:>8.1f} "
+                  f"{r['warm_s_fixed']:>8.1f} {r['warm_s_deformable']:>8.1f} "
+                  f"{r['rows_fixed']:>7.0f} {r['rows_deformable']:>7.0f}", flush=True)
     if args.json:
         with open(args.json, "w") as handle:
             json.dump(rows, handle, indent=1)
