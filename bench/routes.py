@@ -32,6 +32,10 @@ import calippso
 LS_PRESSURE = 1e5
 #: Diameters of the inputs made here: equal spheres, or bidisperse 1:1.4 discs in d = 2.
 DISC_RATIO = 1.4
+#: Quantiles of the particles' displacements from the input that a row reports.
+QUANTILES = (0.9, 0.99, 0.999)
+#: ... and the displacements (mean diameters) above which it counts the particles.
+FAR = (0.1, 0.25, 0.5)
 
 
 def make_input(kind: str, n: int, d: int, seed: int, cache: Path | None) -> calippso.Packing:
@@ -77,7 +81,25 @@ def run_route(packing: calippso.Packing, route: str, limit: float,
     except calippso.JammingError as error:
         return {"route": route, "wall_time": time.perf_counter() - started, "refused": str(error),
                 "phi_input": packing.phi}, np.zeros(0, np.int64)
-    return result_row(result, route, time.perf_counter() - started), contact_keys(result)
+    row = result_row(result, route, time.perf_counter() - started)
+    row.update(displacement_spread(packing, result))
+    return row, contact_keys(result)
+
+
+def displacement_spread(packing: calippso.Packing, result: calippso.JammingResult) -> dict:
+    """Quantiles (`QUANTILES`) of the particles' displacements from the input `packing`,
+    and how many particles moved further than each of `FAR`, the farthest one a rattler or
+    not (mean diameters of the input)."""
+    from calippso.periodic import displacements
+
+    lengths, _ = displacements(packing.positions, result.packing.positions, packing.box,
+                               packing.periodic)
+    lengths /= packing.mean_diameter
+    farthest = int(np.argmax(lengths))
+    return {"displacement_quantiles": {str(q): float(np.quantile(lengths, q))
+                                       for q in QUANTILES},
+            "displacement_beyond": {str(x): int(np.count_nonzero(lengths > x)) for x in FAR},
+            "farthest_is_rattler": bool(result.rattlers[farthest])}
 
 
 def result_row(result: calippso.JammingResult, route: str, seconds: float) -> dict:
@@ -123,7 +145,13 @@ def format_row(row: dict) -> str:
             f"{'jammed' if row['converged'] else row['stop_reason']:>10s} "
             f"phi_J {row['phi_j']:.6f} (input {row['phi_input']:.6f}) "
             f"displacement median {row['displacement_median']:.1e} max "
-            f"{row['displacement_max']:.1e}  contacts {row['contacts']}")
+            f"{row['displacement_max']:.1e}  contacts {row['contacts']}"
+            + ("" if "displacement_quantiles" not in row else
+               "\n         displacement quantiles "
+               + " ".join(f"{q}: {x:.2g}" for q, x in row["displacement_quantiles"].items())
+               + "; particles beyond "
+               + " ".join(f"{x}: {k}" for x, k in row["displacement_beyond"].items())
+               + f"; the farthest {'a rattler' if row['farthest_is_rattler'] else 'stable'}"))
 
 
 def main() -> None:

@@ -127,7 +127,7 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         from the input (`route`, `displacement_max`, `displacement_median`, `phi_input`).
     max_displacement : float, optional
         Largest distance a particle may move from the input, in mean diameters; a route
-        that would move one further raises JammingError. None: 0.25 on the relaxed route,
+        that would move one further raises JammingError. None: 0.5 on the relaxed route,
         no bound on the LP route.
     **options
         Further `JamSettings` fields (e.g. ``network_first``, ``initial_step``,

@@ -38,9 +38,12 @@ __all__ = ["ROUTES", "DEFAULT_MAX_DISPLACEMENT", "AUTO_MIN_PARTICLES", "check_ro
 #: Values of ``jam(..., route=...)``.
 ROUTES = ("lp", "relaxed", "auto")
 #: The relaxed route's bound on the distance of any particle from its place in the input
-#: (mean diameters) when the caller gives none: a quarter of a diameter keeps every particle
-#: in its cage; the relaxation moves particles by ~1e-2 (docs/notes/relaxed-route.md).
-DEFAULT_MAX_DISPLACEMENT = 0.25
+#: (mean diameters) when the caller gives none. Half a diameter: input centres of equal
+#: spheres lie at least a diameter apart, so within it every particle stays nearer its own
+#: place than any other's, and the jamming point is the input's particle by particle. The
+#: relaxation of constant-rate inputs moves particles by a median ~1e-2 and the farthest
+#: by 0.05–0.34, more the larger N (docs/notes/relaxed-route.md).
+DEFAULT_MAX_DISPLACEMENT = 0.5
 #: route="auto" takes the relaxed route only from this many particles on: below it an LP
 #: costs little, and the loop's wandering phase takes seconds.
 AUTO_MIN_PARTICLES = 1024

@@ -146,7 +146,7 @@ def jam_record(result, source, output: Path | None) -> dict:
     type=positive(float),
     default=None,
     help="Refuse a route that moves any particle further than this from the input (mean "
-    "diameters); default 0.25 on the relaxed route, no bound on the LP route.",
+    "diameters); default 0.5 on the relaxed route, no bound on the LP route.",
 )
 @click.option(
     "--box",
