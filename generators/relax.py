@@ -26,22 +26,12 @@ from .soft_quench import (BOUNDARY_KINDS, PHI_START_FACTOR, TARGET_AIM, _check_b
                           _pressure_ladder, _Run, _SoftSpheres, check_quench_options,
                           quench_and_shrink)
 
-__all__ = ["relax", "RELAX_START_PRESSURE", "RELAX_START_SKIN"]
+__all__ = ["relax", "RELAX_START_PRESSURE"]
 
 #: Pressure of the first minimisation of `relax` (ε / (mean diameter)^d): the input is
 #: inflated to it. Lower than the quench's 1e-2 from random centres, since the input is
 #: already near a jamming point and every rung above it would move it further.
 RELAX_START_PRESSURE = 1e-4
-#: Verlet skin of the first minimisation (mean diameters) from dimension
-#: `THIN_SKIN_FROM_DIMENSION` on, below the caller's `skin`, which stays the largest the
-#: skin adapts to (`soft_quench.SKIN_STEP`): an input near a jamming point moves by ~1e-2,
-#: and a thin skin lists fewer pairs that do not interact. In d = 4 and 5 (LS, N = 1024)
-#: the first minimisations with the quench's 0.2 cost about twice as much per step as with
-#: 0.02; in d = 3 FIRE's skin adapts to 0.02 within the first minimisation (its list
-#: rebuilds), and the relaxation of FB → LS at N = 4096 was not faster with the thin start
-#: (docs/notes/relaxed-route.md).
-RELAX_START_SKIN = 0.03
-THIN_SKIN_FROM_DIMENSION = 4
 
 
 def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
@@ -74,12 +64,8 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     target_pressure : float, optional
         The last minimum has half this pressure. Default: `default_target_pressure` (as
         `soft_quench`).
-    force_tolerance, progress, max_steps, checkpoint_every, minimiser
+    force_tolerance, progress, skin, max_steps, checkpoint_every, minimiser
         As in `soft_quench`.
-    skin : float
-        Largest Verlet skin in mean diameters, as in `soft_quench`; in d ≥ 4 the first
-        minimisation starts at `RELAX_START_SKIN` (0.03) below it, and the skin adapts
-        from there.
     checkpoint : str or PathLike, optional
         File (``.npz``) of the run's state, written and resumed as in `soft_quench`; it
         belongs to this input and these options (`max_steps` and `max_displacement` aside:
@@ -140,8 +126,6 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
                max(packing.phi, PHI_START_FACTOR * phi_estimate(d)), boundaries.periodic)
     system = _SoftSpheres(start, nominal, box, skin, minimiser, boundaries.periodic,
                           boundaries.cylinder_axes)
-    if d >= THIN_SKIN_FROM_DIMENSION:
-        system.skin = min(skin, RELAX_START_SKIN)
     run = _Run(_pressure_ladder(TARGET_AIM * target_pressure, start_pressure),
                force_tolerance, max_steps)
     watch = None if max_displacement is None else _Bound(start, box, boundaries.periodic,
