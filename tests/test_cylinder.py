@@ -107,7 +107,8 @@ def assert_jammed_in_a_cylinder(result) -> None:
 
 @pytest.mark.parametrize("d, n, seed, polydisperse", [
     (2, 96, 1, True),
-    (3, 128, 2, True),
+    # d = 3 in the fast suite: test_packing_generation_cylinder_is_read_jammed_and_verified
+    pytest.param(3, 128, 2, True, marks=pytest.mark.slow),
     pytest.param(3, 128, 1, False, marks=pytest.mark.slow),
 ])
 def test_jam_in_a_cylinder(d, n, seed, polydisperse):

@@ -214,7 +214,7 @@ def assert_jammed_between_walls(result) -> None:
     (2, 128, [0], True),
     (2, 64, [0, 1], True),
     pytest.param(3, 128, [0], False, marks=pytest.mark.slow),
-    (3, 128, [0, 1], True),
+    pytest.param(3, 128, [0, 1], True, marks=pytest.mark.slow),
     (3, 64, [0, 1, 2], True),
     pytest.param(3, 128, [0, 1], False, marks=pytest.mark.slow),
 ])
