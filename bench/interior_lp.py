@@ -166,7 +166,8 @@ def main() -> None:
                         default=[HighsOptions().interior_optimality_tolerance])
     parser.add_argument("--interior-point", default="auto", choices=["auto", "ipx", "hipo"])
     parser.add_argument("--threads", type=int, default=0,
-                        help="HiGHS's threads (0: its own choice, half the cores)")
+                        help="HiGHS's threads (0: as jam runs it, "
+                             "calippso.solvers.highs.highs_threads)")
     parser.add_argument("--json", default="")
     args = parser.parse_args()
     inputs = [(path, lambda p=path: (calippso.read(p), 0.0)) for path in args.input]

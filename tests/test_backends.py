@@ -175,6 +175,27 @@ class _OutOfMemory:
         raise MemoryError("std::bad_alloc")
 
 
+@pytest.mark.parametrize("budget, expected", [("3", 3), ("1", 1), (" 2 ", 2)])
+def test_highs_runs_on_the_thread_budget_of_the_process(monkeypatch, budget, expected):
+    """OMP_NUM_THREADS (an ensemble worker's share of the cores) sets HiGHS's threads."""
+    monkeypatch.setenv("OMP_NUM_THREADS", budget)
+    assert highs.highs_threads() == expected
+    assert highs._quiet_highs().getOptionValue("threads")[1] == expected
+
+
+@pytest.mark.parametrize("budget", [None, "", "0", "two"])
+def test_without_a_thread_budget_highs_takes_every_core_of_the_process(monkeypatch, budget):
+    import os
+
+    if budget is None:
+        monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    else:
+        monkeypatch.setenv("OMP_NUM_THREADS", budget)
+    cores = (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+             else os.cpu_count())
+    assert highs.highs_threads() == cores
+
+
 def test_library_errors_become_solver_errors(small_start, monkeypatch):
     """What a library raises while solving is a `SolverError` (the loop falls back on it);
     the message names the library and the original error."""
