@@ -28,6 +28,9 @@ When the candidate pairs cannot hold a positive self-stress (the restricted LP i
 unbounded), a pair that must close is missing: the round reads the pairs `WIDENING` times
 farther from contact instead (never beyond `calippso.network_guess.CANDIDATE_GAP`).
 
+The pivots of all rounds (and of all the candidates the stage tries) share one budget,
+`STAGE_PIVOTS`: a network that needs more is too far off for one contact at a time.
+
 This is the loop of `calippso.ilp` with only near pairs as rows and Newton as the update.
 The caller (`jam`) still certifies the accepted network (overlaps, rattlers, the touching
 test) before it ends a run with no LP.
@@ -48,7 +51,7 @@ from .packing import minimum_image
 from .pivots import PivotPath, pivot_to_jamming
 from .restricted_lp import TOO_FEW, lp_network
 
-__all__ = ["MAX_ROUNDS", "SettledNetwork", "settle_candidate"]
+__all__ = ["MAX_ROUNDS", "STAGE_PIVOTS", "PivotBudget", "SettledNetwork", "settle_candidate"]
 
 #: Rounds of restricted LP and Newton tried per candidate (each costs two or three sparse
 #: factorisations); a near-jammed input settles in one to three.
@@ -60,9 +63,38 @@ WIDENING = 4.0
 #: Contact pivots taken at most in one round; a network that needs more is chosen again by
 #: the restricted LP at the point they reached (each pivot costs up to a sparse LU).
 ROUND_PIVOTS = 40
+#: Contact pivots the network-first stage takes at most over all its rounds and candidates.
+#: A pivot costs about 1/16 of one interior-point LP of the same packing at N = 8192 and
+#: 16384 (2.5-3 s against 44-100 s on 2 cores), so the budget bounds the stage at about
+#: six LPs' worth of time before a network that far off goes to the LP loop, which sees all of
+#: it at once; the inputs that network first certifies take a few to a few tens of pivots.
+STAGE_PIVOTS = 100
 #: A pair of stable particles outside the network may overlap at its jamming point by at most
 #: this relative gap (round-off); the same tolerance as the certificate of `jam`.
 OVERLAP_TOLERANCE = 1e-12
+
+
+@dataclass
+class PivotBudget:
+    """Contact pivots still allowed to the network-first stage (shared by its candidates).
+
+    Attributes
+    ----------
+    remaining : int
+        Pivots left (`STAGE_PIVOTS` at the start of the stage); `settle_candidate` stops a
+        candidate once none are.
+    """
+
+    remaining: int
+
+    def per_path(self) -> int:
+        """Pivots one path may take: a round's share, within what is left."""
+        return min(ROUND_PIVOTS, self.remaining)
+
+    def spend(self, path: PivotPath | None) -> None:
+        """Count the pivots a path took (none when its start was refused)."""
+        if path is not None:
+            self.remaining -= path.pivots
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,7 +134,7 @@ class SettledNetwork:
 
 
 def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
-                     pivots: bool = True
+                     pivots: bool = True, budget: PivotBudget | None = None
                      ) -> tuple[SettledNetwork | None, str, Refinement | None]:
     """Rounds of restricted LP and Newton from a candidate (module doc).
 
@@ -117,6 +149,9 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
     pivots : bool
         Follow contact pivots from a round's network whose jamming point has non-positive
         forces and no overlap (`calippso.pivots`), before another round.
+    budget : PivotBudget, optional
+        The pivots allowed (spent as they are taken); a fresh `STAGE_PIVOTS` when omitted.
+        A candidate is refused once the budget is spent and its network is not settled.
 
     Returns
     -------
@@ -130,8 +165,11 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
     if not pivots and _isostaticity_gap(base, n, d) < 0:
         return (None, "the candidate misses contacts (its floppy modes close with pivots only)",
                 None)
+    budget = PivotBudget(STAGE_PIVOTS) if budget is None else budget
     pairs, opened, failure, reached = base, -1, "", None
     for round_number in range(1, MAX_ROUNDS + 1):
+        if pivots and budget.remaining <= 0:
+            return None, f"the stage's {STAGE_PIVOTS} contact pivots are spent ({failure})", reached
         # an isostatic or hypostatic candidate leaves the restricted LP no choice: the
         # floppy modes close and the pivots repair it instead
         direct = pivots and round_number == 1 and _solvable_as_it_is(pairs, n, d)
@@ -166,7 +204,8 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         path = None
         if refined is None and pivots:   # a singular network: the pivots repair it first
             path, failure = pivot_to_jamming(current.positions, current.diameters, search.box,
-                                             i, j, rattlers, max_pivots=ROUND_PIVOTS)
+                                             i, j, rattlers, max_pivots=budget.per_path())
+            budget.spend(path)
             if path is not None:
                 i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement
         if refined is None and direct:
@@ -181,7 +220,8 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
                 and not overlap):
             path, failure = pivot_to_jamming(current.positions, current.diameters,
                                              search.box, i, j, rattlers, refined=refined,
-                                             max_pivots=ROUND_PIVOTS)
+                                             max_pivots=budget.per_path())
+            budget.spend(path)
             if path is not None and closure is not None:
                 path = replace(path, closed=closure.closed,
                                seconds=path.seconds + closure.seconds)

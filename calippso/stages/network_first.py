@@ -4,7 +4,8 @@ Candidates come from `calippso.network_guess` in a periodic box (the hint first,
 gap spectrum) and from `calippso.container_guess` in a container (pairs and wall contacts
 read from their gaps). At most `MAX_NETWORK_GUESSES` are tried: a periodic candidate is
 settled first (`calippso.network_first.settle_candidate`: restricted LP, Newton and contact
-pivots, a few rounds), then each goes to the Newton stage's certificate. Each candidate adds
+pivots, a few rounds; all candidates share one budget of `STAGE_PIVOTS` pivots), then each
+goes to the Newton stage's certificate. Each candidate adds
 a history record (stage "guess"), a certified one also the pivot and Newton records; the
 notes say what happened.
 
@@ -24,7 +25,7 @@ import numpy as np
 from ..container_guess import container_candidates
 from ..history import StopReason
 from ..network import ContactNetwork, network_key
-from ..network_first import SettledNetwork, settle_candidate
+from ..network_first import STAGE_PIVOTS, PivotBudget, SettledNetwork, settle_candidate
 from ..network_guess import Candidate, candidate_networks
 from ..newton import Refinement
 from ..rattlers import remove_rattlers, separate_rattlers
@@ -71,9 +72,11 @@ def network_first(run: Run, state: LoopState,
                          "(not near a jamming point), so the LP loop ran")
         return state, None
     failures, first_reached = [], None
+    budget = PivotBudget(STAGE_PIVOTS)
     for candidate in candidates:
         settled, failure, reached = settle_candidate(state.search, candidate, run.d,
-                                                     pivots=run.settings.pivots != "off")
+                                                     pivots=run.settings.pivots != "off",
+                                                     budget=budget)
         if first_reached is None and reached is not None:
             first_reached = (reached, candidate.near_gap)
         _record_guess(run, state, candidate, settled, time.perf_counter() - start)
