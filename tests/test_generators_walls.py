@@ -13,6 +13,7 @@ import generators
 from calippso import Boundaries
 from calippso.neighbors import min_gap
 from generators import diameters as dist
+from generators.periodic import NO_CYLINDER
 
 #: Relative overlap allowed between two particles (round-off), × the diameter.
 OVERLAP_TOLERANCE = 1e-9
@@ -99,7 +100,7 @@ def _energy_terms(x, s, scale, box, periodic):
     f = np.zeros_like(x)
     pair_force = np.empty((lists[1].shape[0], x.shape[1]))
     sums = _fire.harmonic_forces(x, np.zeros_like(x), s, scale, box, *lists, pair_force, f,
-                                 _fire.work_array(x.shape[0]), periodic)
+                                 _fire.work_array(x.shape[0]), periodic, NO_CYLINDER)
     return f, sums[5], sums[7], sums[6]
 
 
@@ -202,7 +203,8 @@ def test_wall_event_meets_the_growing_sphere_and_reflects_with_the_growth():
     x = np.array([[1.0, 2.0]])
     v = np.array([[-1.0, 0.3]])
     s, box, rate = np.array([1.0]), np.array([4.0, 4.0]), 0.2
-    tau, wall = _wall_event(0, x, v, s, box, np.array([False, True]), 1.0, rate)
+    tau, wall = _wall_event(0, x, v, s, box, np.array([False, True]), 1.0, rate,
+                            NO_CYLINDER)
     assert wall == 0
     assert x[0, 0] + v[0, 0] * tau == pytest.approx(0.5 * s[0] * (1.0 + rate * tau), rel=1e-14)
     scale = 1.0 + rate * tau
@@ -211,9 +213,11 @@ def test_wall_event_meets_the_growing_sphere_and_reflects_with_the_growth():
     assert virial == pytest.approx(0.5 * scale * 2.2, rel=1e-14)
     # the same sphere moving away from the wall and slower than its growth meets the far wall
     v = np.array([[0.05, 0.0]])
-    tau, wall = _wall_event(0, x, v, s, box, np.array([False, True]), 1.0, rate)
+    tau, wall = _wall_event(0, x, v, s, box, np.array([False, True]), 1.0, rate,
+                            NO_CYLINDER)
     assert wall == 0 and tau == pytest.approx(0.5 / (0.1 - 0.05))
-    assert _wall_event(0, x, v, s, box, np.array([True, True]), 1.0, rate)[0] == np.inf
+    assert _wall_event(0, x, v, s, box, np.array([True, True]), 1.0, rate,
+                       NO_CYLINDER)[0] == np.inf
 
 
 def test_elastic_walls_conserve_the_kinetic_energy():
@@ -227,8 +231,12 @@ def test_elastic_walls_conserve_the_kinetic_energy():
     v = np.random.default_rng(4).standard_normal(x.shape)
     energy = np.sum(v ** 2)
     periodic = start.periodic.astype(bool)
-    _, _, virial, _, collisions, _ = run_window(x, v, np.ones(40), start.box, 1.0, 0.0, 1.0,
-                                                4000, 10 ** 9, 0.1, np.inf, periodic)
+    # a writable box and the cylinder argument, as the generators pass them: the kernel's
+    # compiled variant is reused
+    box = np.array(start.box)
+    _, _, virial, _, collisions, _ = run_window(x, v, np.ones(40), box, 1.0, 0.0, 1.0,
+                                                4000, 10 ** 9, 0.1, np.inf, periodic,
+                                                NO_CYLINDER)
     assert collisions == 4000 and virial > 0
     assert np.sum(v ** 2) == pytest.approx(energy, rel=1e-12)
     Boundaries.walls(3, ["x", "y"]).check(x, np.ones(40), start.box)
@@ -313,7 +321,7 @@ def test_fb_wall_push_is_the_push_of_the_mirror_image():
     x = np.array([[0.3, 1.0], [1.5, 1.0]])
     force = np.zeros_like(x)
     inner = _wall_pushes(x, np.ones(2), np.array([3.0, 3.0]), np.array([False, True]), 1.0,
-                         force, np.inf)
+                         force, np.inf, NO_CYLINDER)
     assert force[0, 0] == pytest.approx(1.0 - 0.6 ** 2, rel=1e-14)
     assert force[0, 1] == 0.0 and np.all(force[1] == 0.0)
     assert inner == pytest.approx(0.6, rel=1e-14)
