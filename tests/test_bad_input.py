@@ -6,8 +6,6 @@ that the message must match (the words a user needs to fix the input).
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import itertools
@@ -235,9 +233,6 @@ def test_generators_refuse(call, pattern):
 
 # ----------------------------------------------------------------------------- CLI
 
-#: How to call the command line.
-CLI = [sys.executable, "-m", "calippso"]
-
 
 @pytest.mark.parametrize("make, pattern", [
     (lambda tmp: tmp / "absent.dat", r"no such file|does not exist"),
@@ -254,12 +249,16 @@ CLI = [sys.executable, "-m", "calippso"]
      r"packing\.xyzd: .* outside the container or overlapping its wall \(the cylinder"),
 ], ids=["missing", "unknown-format", "truncated", "non-numeric", "nan", "garbage-npz",
         "packing-generation-trapezoid", "packing-generation-outside-cylinder"])
-def test_cli_reports_bad_files(tmp_path, make, pattern):
+def test_cli_reports_bad_files(tmp_path, make, pattern, capfd):
+    """The command's `main`, in this process: ``python -m calippso`` runs the same function
+    (tests/test_cli.py runs it so, on a missing file)."""
+    from calippso.cli import main
+
     path = make(tmp_path)
-    done = subprocess.run([*CLI, "jam", str(path), "-o", str(tmp_path / "out.npz")],
-                          capture_output=True, text=True, timeout=120)
-    assert done.returncode in (1, 2), done.stderr
-    assert "Traceback" not in done.stderr
-    message = done.stderr.strip().splitlines()[-1]
+    code = main(["jam", str(path), "-o", str(tmp_path / "out.npz")])
+    err = capfd.readouterr().err
+    assert code in (1, 2), err
+    assert "Traceback" not in err
+    message = err.strip().splitlines()[-1]
     assert message.startswith("error: ")
     assert __import__("re").search(pattern, message), message

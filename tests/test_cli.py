@@ -291,7 +291,22 @@ def test_not_converged_is_exit_3_and_still_written(capfd, tmp_path, start_2d):
     assert json.loads(out)["converged"] is False and (tmp_path / "r.npz").exists()
 
 
-def test_report_and_demo(capfd, tmp_path):
+@pytest.fixture
+def figures_not_drawn(monkeypatch):
+    """Reports whose figures are built but not laid out or written (an empty file stands for
+    each PNG): the report commands' records and summaries are what these tests check; the
+    figures themselves are drawn and checked in tests/test_reporting.py (~1 s each)."""
+    from calippso.reporting import _matplotlib, figures
+
+    def unsaved(fig, path):
+        _matplotlib.pyplot().close(fig)
+        path.touch()
+        return path
+
+    monkeypatch.setattr(figures, "_save", unsaved)
+
+
+def test_report_and_demo(capfd, tmp_path, figures_not_drawn):
     if not hasattr(calippso, "report"):
         pytest.skip("calippso.report is not available")
     code, out, err = _run(capfd, "demo", "--n", "32", "-o", tmp_path / "demo", "--json")
@@ -310,7 +325,7 @@ def test_report_and_demo(capfd, tmp_path):
     assert code != 0 and "exponential" in err
 
 
-def test_report_of_a_folder_pools_its_results(capfd, tmp_path, start_2d):
+def test_report_of_a_folder_pools_its_results(capfd, tmp_path, start_2d, figures_not_drawn):
     folder = tmp_path / "ensemble"
     for name in ("packing_000000.npz", "packing_000001.h5"):
         assert _run(capfd, "jam", start_2d, "-o", folder / name, "--quiet")[0] == 0

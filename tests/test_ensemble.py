@@ -49,9 +49,12 @@ def test_local_processes_write_resume_and_record_failures(tmp_path):
     assert not (tmp_path / "state_000001_jam.npz").exists()  # removed once written
     assert (tmp_path / "state_000002_jam.npz").exists()  # kept: packing 2 was not written
 
+    # Resuming is the client's work (which packings to skip, which to compute): threads
+    # compute here, where fresh worker processes would only add their imports.
     finished = ensemble.packing_file(tmp_path, 1).stat().st_mtime_ns
     ensemble.packing_file(tmp_path, 2).rmdir()
-    rows = ensemble.run(SPEC, 4, seeds=1, out_dir=tmp_path, workers=2)
+    with concurrent.futures.ThreadPoolExecutor(2) as threads:
+        rows = ensemble.run(SPEC, 4, seeds=1, out_dir=tmp_path, executor=threads)
     assert [row["state"] for row in rows] == ["done"] * 4
     assert ensemble.packing_file(tmp_path, 1).stat().st_mtime_ns == finished  # skipped
     assert not (tmp_path / "packing_000002.error.txt").exists()
