@@ -19,7 +19,8 @@ TESTS = Path(__file__).resolve().parent
 
 
 def start_configuration():
-    return random_sequential_addition(128, 3, 0.3, seed=5)
+    """A loose start (φ = 0.3) that takes ~50 LPs to jam (N = 64, d = 3; ~1 s)."""
+    return random_sequential_addition(64, 3, 0.3, seed=5)
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,7 @@ def test_run_killed_by_sigkill_resumes(tmp_path, uninterrupted):
     script = (
         "from configurations import random_sequential_addition\n"
         "from calippso import jam\n"
-        f"jam(random_sequential_addition(128, 3, 0.3, seed=5), checkpoint={str(path)!r})\n")
+        f"jam(random_sequential_addition(64, 3, 0.3, seed=5), checkpoint={str(path)!r})\n")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [str(TESTS), str(TESTS.parent), os.environ.get("PYTHONPATH", "")])}
     process = subprocess.Popen([sys.executable, "-c", script], env=env,
