@@ -112,6 +112,16 @@ def ls_jammed():
 
 
 @pytest.fixture(scope="session")
+def quenched_discs():
+    """512 equal discs soft-quenched to p = 1e-6 (d = 2, seed 2; ~2 s): they crystallise in
+    patches, and no rigid network holds them (test_extremes, test_c_stdout)."""
+    import generators
+
+    return generators.soft_quench(generators.diameters.monodisperse(512), 2, seed=2,
+                                  target_pressure=1e-6)
+
+
+@pytest.fixture(scope="session")
 def shared_data() -> Path:
     """The folder of real packings made by other codes (skips the test if absent)."""
     if not SHARED_DATA.is_dir():

@@ -202,8 +202,13 @@ def _openings_by_least_squares(result: JammingResult, contacts: list[int]) -> np
     return solutions[:-1].T.reshape(len(contacts), -1, result.d)
 
 
-def test_opening_response_matches_least_squares_and_carries_the_forces(jammed):
-    response = opening_response(jammed)
+@pytest.fixture(scope="module")
+def response(jammed):
+    """The opening response of `jammed` (dense LU), computed once for the module."""
+    return opening_response(jammed)
+
+
+def test_opening_response_matches_least_squares_and_carries_the_forces(jammed, response):
     m = jammed.n_contacts
     assert response.share.shape == response.mover.shape == response.inflation.shape == (m,)
     assert np.all((response.share > 0) & (response.share <= 1 + 1e-12))
@@ -224,9 +229,8 @@ def test_opening_response_matches_least_squares_and_carries_the_forces(jammed):
     assert np.isnan(sparse.reciprocal_condition)
 
 
-def test_localised_responses_move_a_particle_next_to_the_opened_contact(jammed):
+def test_localised_responses_move_a_particle_next_to_the_opened_contact(jammed, response):
     """Opening a localised contact moves mostly one of its own ends, most often a buckler."""
-    response = opening_response(jammed)
     localized = localized_contacts(jammed, "response")
     np.testing.assert_array_equal(localized, response.localized(RESPONSE_THRESHOLD))
     assert 0 < localized.sum() < jammed.n_contacts / 10
@@ -245,7 +249,7 @@ def test_localised_responses_move_a_particle_next_to_the_opened_contact(jammed):
     assert len(split["localized"]) + len(split["extended"]) == len(split["all"])
 
 
-def test_opening_response_needs_an_isostatic_rigid_packing(jammed):
+def test_opening_response_needs_an_isostatic_rigid_packing(jammed, response):
     from dataclasses import replace
 
     hypostatic = replace(jammed, contacts=jammed.contacts[1:], forces=jammed.forces[1:])
@@ -256,7 +260,7 @@ def test_opening_response_needs_an_isostatic_rigid_packing(jammed):
     with pytest.raises(ValueError, match="floppy mode"):
         opening_response(replace(jammed, contacts=contacts))
     with pytest.raises(ValueError, match="threshold"):
-        opening_response(jammed).localized(1.5)
+        response.localized(1.5)
     with pytest.raises(ValueError, match="factorization"):
         opening_response(jammed, factorization="qr")
 

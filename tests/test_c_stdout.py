@@ -55,8 +55,7 @@ def test_guards_restore_descriptor_1(capfd):
     assert err == "to stderr\n"
 
 
-def _degenerate(case: str):
-    import generators
+def _degenerate(case: str, request):
     import lattices
 
     if case == "square":
@@ -66,18 +65,17 @@ def _degenerate(case: str):
     if case == "crystal-discs":
         return lattices.triangular(6, 0.98)
     # equal discs quenched: they crystallise in patches, and jam ends NOT_RIGID
-    return generators.soft_quench(generators.diameters.monodisperse(512), 2, seed=2,
-                                  target_pressure=1e-6).packing
+    return request.getfixturevalue("quenched_discs").packing
 
 
 @pytest.mark.parametrize("case", ["square", "bcc", "crystal-discs", "quenched-discs"])
-def test_jam_json_parses_on_degenerate_inputs(case, tmp_path, capfd):
+def test_jam_json_parses_on_degenerate_inputs(case, tmp_path, capfd, request):
     """Degenerate inputs (lattices that are not jammed, discs that crystallise): the --json
     output is one JSON document, whatever the LPs and factorisations met."""
     from calippso import write
     from calippso.cli import main
 
-    start = _degenerate(case)
+    start = _degenerate(case, request)
     path = tmp_path / "start.npz"
     write(start, path)
     main(["jam", str(path), "-o", str(tmp_path / "jammed.npz"), "--json", "--quiet"])
