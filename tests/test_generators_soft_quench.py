@@ -8,9 +8,6 @@ compilation included.
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numba
 import numpy as np
 import pytest
@@ -201,12 +198,3 @@ def test_a_start_below_jamming_is_compressed():
 def test_bad_input(kwargs, message):
     with pytest.raises(ValueError, match=message):
         generators.soft_quench(**kwargs)
-
-
-def test_import_generators_loads_no_lp_solver():
-    code = ("import generators, sys; generators.soft_quench; "
-            "print(' '.join(sorted(sys.modules)))")
-    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            check=True).stdout.split()
-    assert not {name.split(".")[0] for name in loaded} & {"highspy", "clarabel", "cvxpy"}
-    assert "calippso.ilp" not in loaded
