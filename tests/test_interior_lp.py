@@ -179,3 +179,27 @@ def test_time_limit_stops_cleanly_and_the_checkpoint_resumes(tmp_path):
     assert resumed.phi == whole.phi
     with pytest.raises(ValueError, match="time_limit must be > 0"):
         jam(start, time_limit=0)
+
+
+@pytest.mark.parametrize("bound", [1e-5, 1e-9])
+def test_an_lp_near_convergence_is_read_at_the_scale_of_its_bound(ls_jammed, bound):
+    """An LP at a jammed packing whose diameters shrank by 1e-12 (gaps and γ ~1e-12 mean
+    diameters), with a step bound down to 1e-9: the interior solution's γ is the vertex's,
+    and strict complementarity reads exactly the jammed contacts, many decades apart. In
+    units of a mean diameter HiGHS's absolute tolerances (1e-10) would be wider than the
+    gaps themselves; in units of the bound they are not."""
+    packing = ls_jammed.packing
+    scale = packing.mean_diameter
+    diameters = packing.diameters / scale * (1.0 - 1e-12)
+    search = NeighborSearch(packing.positions / scale, diameters, packing.box / scale)
+    pinned = np.zeros(packing.n, dtype=bool)
+    pinned[0] = True
+    lp = build_lp(select_pairs(search, bound), packing.n, packing.d, bound, pinned)
+    vertex = solve(lp, HighsOptions())
+    centre = solve(lp, HighsOptions(crossover=False))
+    assert centre.optimal and not centre.vertex
+    assert centre.gamma == pytest.approx(vertex.gamma, rel=1e-6)
+    reading = read_complementarity(lp, centre)
+    read = {(int(lp.pairs.i[k]), int(lp.pairs.j[k])) for k in np.flatnonzero(reading.contacts)}
+    assert read == {tuple(pair) for pair in ls_jammed.contacts.tolist()}
+    assert reading.margin > 6

@@ -173,8 +173,19 @@ def interior_point_for(lp: LinearProgram, setting: str) -> str:
     return "hipo" if lp.n_cols >= HIPO_MIN_COLUMNS and hipo_available() else "ipx"
 
 
-def highs_model(lp: LinearProgram) -> highspy.HighsLp:
-    """The LP as a HiGHS model (minimise −γ; rows ≥ row_lower; the column bounds)."""
+def highs_model(lp: LinearProgram, length_unit: float = 1.0) -> highspy.HighsLp:
+    """The LP as a HiGHS model (minimise −γ; rows ≥ row_lower; the column bounds).
+
+    Parameters
+    ----------
+    length_unit : float
+        The unit of the model's lengths, in mean diameters. The LP is homogeneous in its
+        variables (displacements and γ, `calippso.lp`): dividing the right-hand sides and
+        the column bounds by a unit leaves the matrix, the optimum's rows and the duals as
+        they are, and multiplies the solution by the unit's inverse. HiGHS's feasibility
+        tolerances are absolute, so a unit of the step bound makes them resolve the gaps
+        and the γ of an LP whose displacements are all within that bound.
+    """
     model = highspy.HighsLp()
     model.num_col_ = lp.n_cols
     model.num_row_ = lp.n_rows
@@ -182,9 +193,10 @@ def highs_model(lp: LinearProgram) -> highspy.HighsLp:
     cost = np.zeros(lp.n_cols)
     cost[-1] = -1.0
     model.col_cost_ = cost
-    model.col_lower_ = lp.col_lower
-    model.col_upper_ = np.where(np.isinf(lp.col_upper), highspy.kHighsInf, lp.col_upper)
-    model.row_lower_ = lp.row_lower
+    model.col_lower_ = lp.col_lower / length_unit
+    model.col_upper_ = np.where(np.isinf(lp.col_upper), highspy.kHighsInf,
+                                lp.col_upper / length_unit)
+    model.row_lower_ = lp.row_lower / length_unit
     model.row_upper_ = np.full(lp.n_rows, highspy.kHighsInf)
     matrix = model.a_matrix_
     matrix.format_ = highspy.MatrixFormat.kColwise
@@ -233,13 +245,15 @@ def mapped_basis(previous: Basis, lp: LinearProgram) -> highspy.HighsBasis | Non
 
 
 def _solution(highs: highspy.Highs, lp: LinearProgram, start: float,
-              warm_started: bool, interior: bool = False) -> LPSolution:
+              warm_started: bool, interior: bool = False,
+              length_unit: float = 1.0) -> LPSolution:
     """The answer of `highs` to `lp`: a vertex with its basis, or an interior solution
-    (`interior`: no basis, whatever HiGHS reports)."""
+    (`interior`: no basis, whatever HiGHS reports); `length_unit` is that of the model
+    (`highs_model`), and the answer is in mean diameters."""
     status = highs.getModelStatus()
     info = highs.getInfo()
     solution = highs.getSolution()
-    x = np.asarray(solution.col_value, dtype=np.float64)
+    x = np.asarray(solution.col_value, dtype=np.float64) * length_unit
     duals = np.asarray(solution.row_dual, dtype=np.float64)  # ≥ 0 for active ≥ rows (minimising −γ)
     optimal = status == highspy.HighsModelStatus.kOptimal and x.shape[0] == lp.n_cols
     basis = None if interior else _basis_of(highs, lp)
@@ -271,9 +285,9 @@ def solve(lp: LinearProgram, options: HighsOptions, warm_start: Basis | None = N
         highs = _quiet_highs()
         highs.setOptionValue("primal_feasibility_tolerance", options.feasibility_tolerance)
         highs.setOptionValue("dual_feasibility_tolerance", options.feasibility_tolerance)
-        highs.passModel(highs_model(lp))
         if not options.crossover:
             return _interior_solution(highs, lp, options, start)
+        highs.passModel(highs_model(lp))
         basis = mapped_basis(warm_start, lp) if warm_start is not None else None
         if basis is not None and highs.setBasis(basis) == highspy.HighsStatus.kOk:
             highs.setOptionValue("solver", "simplex")
@@ -296,18 +310,22 @@ def solve(lp: LinearProgram, options: HighsOptions, warm_start: Basis | None = N
 
 def _interior_solution(highs: highspy.Highs, lp: LinearProgram, options: HighsOptions,
                        start: float) -> LPSolution:
-    """Solve the model passed to `highs` by interior point without crossover, from scratch.
+    """Solve `lp` by interior point without crossover, from scratch, in units of its step
+    bound (`highs_model`): the solver's absolute tolerances then resolve the gaps and the γ
+    of an LP near convergence, which are many decades below a mean diameter.
 
     Raises RuntimeError or MemoryError as `highs` does (`solve` turns them into
     `SolverError`).
     """
+    highs.passModel(highs_model(lp, length_unit=lp.step_bound))
     _set_interior_point(highs, interior_point_for(lp, options.interior_point))
     highs.setOptionValue("run_crossover", "off")
     # presolve would fix the columns no active row holds (rattlers) at a bound
     highs.setOptionValue("presolve", "off")
     highs.setOptionValue("ipm_optimality_tolerance", options.interior_optimality_tolerance)
     highs.run()
-    return _solution(highs, lp, start, warm_started=False, interior=True)
+    return _solution(highs, lp, start, warm_started=False, interior=True,
+                     length_unit=lp.step_bound)
 
 
 class HighsBackend:
