@@ -8,8 +8,10 @@ independently of the loop. Input makers live in `configurations.py` and `lattice
 
 from __future__ import annotations
 
+import copyreg
 import hashlib
 import os
+import pickle
 import sys
 from pathlib import Path
 
@@ -35,7 +37,7 @@ import pytest  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # configurations.py, lattices.py
 
-from calippso.packing import minimum_image  # noqa: E402
+from calippso.packing import Packing, minimum_image  # noqa: E402
 from configurations import overlap_free  # noqa: E402
 
 SHARED_DATA = REPOSITORY.parent / "shared" / "data"
@@ -109,6 +111,47 @@ def ls_jammed():
     result = jam(start, network_first="off")
     assert_jammed(result)
     return result
+
+
+class _Pickler(pickle.Pickler):
+    """Pickles a `Packing` as a call of its constructor, so that the copy read back has the
+    read-only arrays of every Packing (a plain pickle gives writable ones)."""
+
+    dispatch_table = {**copyreg.dispatch_table,
+                      Packing: lambda p: (Packing, (p.positions, p.diameters, p.box,
+                                                    p.boundaries, p.box_matrix))}
+
+
+@pytest.fixture(scope="session")
+def computed_once(tmp_path_factory):
+    """``computed_once(name, compute)``: the value of ``compute()``, computed by the first
+    pytest-xdist worker that asks for `name` and read back from a file by the others.
+
+    For the expensive module fixtures: a module's tests may run in both workers (the work
+    stealing splits modules), and each worker would compute the fixture again. Without
+    workers (or without ``fcntl``), ``compute()`` runs here.
+    """
+    try:
+        import fcntl
+    except ImportError:
+        fcntl = None
+    if not os.environ.get("PYTEST_XDIST_WORKER") or fcntl is None:
+        return lambda name, compute: compute()
+    folder = tmp_path_factory.getbasetemp().parent   # shared by the workers of this run
+
+    def once(name: str, compute):
+        path = folder / f"computed_once_{name}.pickle"
+        with open(folder / f"computed_once_{name}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if path.is_file():
+                return pickle.loads(path.read_bytes())
+            value = compute()
+            with open(path.with_suffix(".partial"), "wb") as stream:
+                _Pickler(stream, protocol=pickle.HIGHEST_PROTOCOL).dump(value)
+            path.with_suffix(".partial").replace(path)
+            return value
+
+    return once
 
 
 @pytest.fixture(scope="session")

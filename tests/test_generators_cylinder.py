@@ -172,9 +172,10 @@ def test_wall_gaps_number_the_cylinder_2d():
 
 
 @pytest.fixture(scope="module")
-def quenches():
-    return {name: generators.soft_quench(sizes, d, seed=1, boundaries=cylinder_of(d))
-            for name, (d, sizes) in CASES.items()}
+def quenches(computed_once):
+    return computed_once("cylinder_quenches", lambda: {
+        name: generators.soft_quench(sizes, d, seed=1, boundaries=cylinder_of(d))
+        for name, (d, sizes) in CASES.items()})
 
 
 @pytest.mark.parametrize("name", list(CASES))
@@ -368,11 +369,11 @@ def test_elastic_cylinder_conserves_the_kinetic_energy():
 
 
 @pytest.fixture(scope="module")
-def ls_runs():
-    return {name: generators.lubachevsky_stillinger(sizes, d, seed=1,
-                                                    target_pressure=LS_PRESSURE,
-                                                    boundaries=cylinder_of(d))
-            for name, (d, sizes) in CASES.items()}
+def ls_runs(computed_once):
+    return computed_once("cylinder_ls_runs", lambda: {
+        name: generators.lubachevsky_stillinger(sizes, d, seed=1, target_pressure=LS_PRESSURE,
+                                                boundaries=cylinder_of(d))
+        for name, (d, sizes) in CASES.items()})
 
 
 @pytest.mark.parametrize("name", list(CASES))

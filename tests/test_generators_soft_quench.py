@@ -38,13 +38,13 @@ RUNS = [(name, minimiser) for name in CASES for minimiser in MINIMISERS]
 
 
 @pytest.fixture(scope="module")
-def quenches() -> dict:
+def quenches(computed_once) -> dict:
     """Each case of `CASES` quenched once with each minimiser: (name, minimiser) →
     GenerationResult."""
-    return {(name, minimiser): generators.soft_quench(sizes, d, seed=seed,
-                                                      target_pressure=TARGET,
-                                                      minimiser=minimiser)
-            for name, (sizes, d, seed, _) in CASES.items() for minimiser in MINIMISERS}
+    return computed_once("soft_quench_cases", lambda: {
+        (name, minimiser): generators.soft_quench(sizes, d, seed=seed, target_pressure=TARGET,
+                                                  minimiser=minimiser)
+        for name, (sizes, d, seed, _) in CASES.items() for minimiser in MINIMISERS})
 
 
 def contact_gaps(packing, contacts: np.ndarray) -> np.ndarray:

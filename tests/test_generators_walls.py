@@ -137,10 +137,10 @@ def test_harmonic_wall_forces_and_virial_derive_from_the_energy():
 
 
 @pytest.fixture(scope="module")
-def quenches():
-    return {name: generators.soft_quench(sizes, d, seed=1,
-                                         boundaries=Boundaries.walls(d, axes))
-            for name, (d, sizes, axes) in CASES.items()}
+def quenches(computed_once):
+    return computed_once("walls_quenches", lambda: {
+        name: generators.soft_quench(sizes, d, seed=1, boundaries=Boundaries.walls(d, axes))
+        for name, (d, sizes, axes) in CASES.items()})
 
 
 @pytest.mark.parametrize("name", list(CASES))
@@ -243,11 +243,11 @@ def test_elastic_walls_conserve_the_kinetic_energy():
 
 
 @pytest.fixture(scope="module")
-def ls_runs():
-    return {name: generators.lubachevsky_stillinger(sizes, d, seed=1,
-                                                    target_pressure=LS_PRESSURE,
-                                                    boundaries=Boundaries.walls(d, axes))
-            for name, (d, sizes, axes) in CASES.items()}
+def ls_runs(computed_once):
+    return computed_once("walls_ls_runs", lambda: {
+        name: generators.lubachevsky_stillinger(sizes, d, seed=1, target_pressure=LS_PRESSURE,
+                                                boundaries=Boundaries.walls(d, axes))
+        for name, (d, sizes, axes) in CASES.items()})
 
 
 @pytest.mark.parametrize("name", list(CASES))
