@@ -165,6 +165,7 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
                                on_lp, route)
     packing = as_packing(packing, diameters, box)
     check_enough_particles(packing.n, packing.d)
+    settings = settings.resolved(packing.n, packing.d)
 
     def loop(start_packing: Packing, hint, saved) -> JammingResult:
         start = time.perf_counter()

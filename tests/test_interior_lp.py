@@ -13,7 +13,8 @@ from calippso import StopReason, jam
 from calippso.complementarity import read_complementarity
 from calippso.lp import build_lp, select_pairs
 from calippso.neighbors import NeighborSearch, Pairs
-from calippso.settings import JamSettings
+from calippso import settings as settings_module
+from calippso.settings import INTERIOR_LP_MIN_COLUMNS, JamSettings
 from calippso.solvers import LPSolution
 from calippso.solvers.highs import HighsOptions, solve
 from calippso.step import analyse
@@ -34,10 +35,33 @@ def interior(packing, **options):
 
 
 def test_crossover_is_a_checked_setting():
-    assert JamSettings().crossover == "on"
-    with pytest.raises(ValueError, match=r"^unknown crossover 'maybe': choose one of on, off"):
+    assert JamSettings().crossover == "auto"
+    with pytest.raises(ValueError,
+                       match=r"^unknown crossover 'maybe': choose one of auto, on, off"):
         JamSettings(crossover="maybe")
     assert HighsOptions.from_settings(JamSettings(crossover="off")).crossover is False
+    assert HighsOptions.from_settings(JamSettings()).crossover is True
+
+
+def test_auto_crossover_goes_off_for_large_lps():
+    """"auto" is "off" from `INTERIOR_LP_MIN_COLUMNS` columns (d N + 1) on; a choice made
+    by the caller stays as it is."""
+    below = (INTERIOR_LP_MIN_COLUMNS - 2) // 3
+    assert JamSettings().resolved(below, 3).crossover == "on"
+    assert JamSettings().resolved(below + 1, 3).crossover == "off"
+    assert JamSettings(crossover="on").resolved(10 * below, 3).crossover == "on"
+    assert JamSettings(crossover="off").resolved(8, 2).crossover == "off"
+
+
+def test_jam_takes_the_interior_engine_where_auto_says_so(ls_jammed, monkeypatch):
+    """With the threshold lowered below N = 64, d = 3 (193 columns), the default run solves
+    its LPs without crossover, and ends certified."""
+    monkeypatch.setattr(settings_module, "INTERIOR_LP_MIN_COLUMNS", 100)
+    solutions = []
+    result = jam(ls_jammed.packing, network_first="off",
+                 on_lp=lambda attempt: solutions.append(attempt.solution))
+    assert_jammed(result)
+    assert solutions and not any(solution.vertex for solution in solutions)
 
 
 @pytest.mark.parametrize("d, n, seed", [

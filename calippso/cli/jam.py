@@ -11,7 +11,8 @@ from typing import TYPE_CHECKING
 import click
 
 from ..routes import ROUTES
-from ..settings import INTERIOR_POINT_SOLVERS, NETWORK_FIRST_MODES, PIVOT_MODES
+from ..settings import (CROSSOVER_MODES, INTERIOR_LP_MIN_COLUMNS, INTERIOR_POINT_SOLVERS,
+                        NETWORK_FIRST_MODES, PIVOT_MODES)
 from .common import (checkpoint_option, container_options, naming, output_options,
                      output_path, positive, solver_option, with_container)
 from .progress import jam_with_progress
@@ -69,6 +70,15 @@ def jam_record(result, source, output: Path | None) -> dict:
     show_default=True,
     help="HiGHS interior point for LPs solved from scratch (auto: HiPO for large LPs when "
     "installed, else IPX; hipo needs calippso[hipo]).",
+)
+@click.option(
+    "--crossover",
+    type=click.Choice(CROSSOVER_MODES),
+    default="auto",
+    show_default=True,
+    help="End every LP at a vertex (on), or read each interior solution by complementarity "
+    f"and hand its network to Newton (off); auto: off for LPs of {INTERIOR_LP_MIN_COLUMNS:,} "
+    "columns (d N + 1) or more.",
 )
 @click.option(
     "--tol-gamma",
@@ -168,7 +178,7 @@ def jam_record(result, source, output: Path | None) -> dict:
 @checkpoint_option
 @container_options
 @output_options
-def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters, time_limit,
+def jam(input_path, output, solver, interior_point, crossover, tol_gamma, tol_s, max_iters, time_limit,
         precompress_pressure, network_first, pivots, network_path, route, max_displacement,
         box_mode, test_category, checkpoint, container, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
@@ -199,6 +209,7 @@ def jam(input_path, output, solver, interior_point, tol_gamma, tol_s, max_iters,
             out.progress,
             solver=solver,
             interior_point=interior_point,
+            crossover=crossover,
             tol_gamma=tol_gamma,
             tol_s=tol_s,
             max_iters=max_iters,
