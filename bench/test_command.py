@@ -23,13 +23,16 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 
 
 def timed(command: list[str], cwd: Path) -> tuple[float, str]:
-    """Wall time of `command` (s) and the last line of its output; raises when it fails."""
+    """Wall time of `command` (s) and the last line of its output; raises when it fails,
+    naming the failed tests."""
     started = time.perf_counter()
     done = subprocess.run(command, cwd=cwd, capture_output=True, text=True)
     seconds = time.perf_counter() - started
     lines = (done.stdout + done.stderr).strip().splitlines()
     if done.returncode != 0:
-        raise SystemExit(f"{' '.join(command)} failed: {lines[-1] if lines else ''}")
+        failed = [line for line in lines if line.startswith(("FAILED", "ERROR"))]
+        raise SystemExit("\n".join([f"{' '.join(command)} failed after {seconds:.0f} s: "
+                                    f"{lines[-1] if lines else ''}", *failed]))
     return seconds, lines[-1] if lines else ""
 
 
