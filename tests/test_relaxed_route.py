@@ -116,15 +116,15 @@ def test_auto_keeps_a_small_input_on_the_lp_route(spheres):
 def test_a_relaxation_that_moves_too_far_stops_at_once(spheres):
     relaxed = generators.relax(spheres, max_displacement=1e-4)
     assert relaxed.extra["halted"] and relaxed.extra["max_displacement"] > 1e-4
-    # stopped at the first pause of the first of its three minimisations (1e-4 to 5e-7)
-    assert len(relaxed.history) == 1 and len(relaxed.extra["rungs"]) == 3
+    # stopped at the first pause of the first of its four minimisations
+    assert len(relaxed.history) == 1 and len(relaxed.extra["rungs"]) == 4
     assert relaxed.steps <= PAUSE_STEPS
     assert f"particle {relaxed.extra['farthest']} lies" in relaxed.status
 
 
 def test_a_route_that_moves_too_far_is_refused_before_the_ladder_ends(spheres):
     with pytest.raises(JammingError, match=r"more than max_displacement = 0\.0001 \(the "
-                       r"relaxation stopped there, at pressure 1e-04, rung 1 of 3\)") as caught:
+                       r"relaxation stopped there, at pressure 1e-04, rung 1 of 4\)") as caught:
         calippso.jam(spheres, route="relaxed", max_displacement=1e-4)
     assert "\n" not in str(caught.value)
 
@@ -147,17 +147,6 @@ def test_a_stopped_relaxation_continues_from_its_checkpoint(spheres, tmp_path):
 def test_bad_route_options_are_named(spheres, route, options, message):
     with pytest.raises(ValueError, match=message):
         calippso.jam(spheres, route=route, **options)
-
-
-def test_the_ladder_goes_down_in_equal_factors_no_smaller_than_asked(spheres):
-    from generators.relax import pressure_ladder
-
-    ladder = pressure_ladder(1e-4, 5e-8, 0.01)         # 2000 = 100^1.65: two factors
-    np.testing.assert_allclose(ladder, [1e-4, np.sqrt(1e-4 * 5e-8), 5e-8], rtol=1e-12)
-    assert pressure_ladder(1e-4, 5e-7, 0.1).size == 4  # the quench's factor: three
-    np.testing.assert_array_equal(pressure_ladder(1e-6, 1e-5, 0.01), [1e-5])
-    with pytest.raises(ValueError, match="pressure_reduction must lie in"):
-        generators.relax(spheres, pressure_reduction=1.0)
 
 
 @pytest.mark.parametrize("d, sizes", [
