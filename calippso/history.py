@@ -175,8 +175,9 @@ class History:
     def add_pivots(self, *, seconds: float, pivots: int, sqrt_gamma_minus_1: float,
                    max_displacement: float, n_contacts: int, n_stable: int, min_gap: float,
                    phi: float) -> Record:
-        """The record of a path of contact pivots that reached a jamming point (rows are the
-        contacts of its last network; growth and move from the path's start)."""
+        """The record of a path of contact pivots, to a jamming point or to where its budget
+        ran out (rows are the contacts of its last network; growth and move from the path's
+        start)."""
         return self._add(Record(
             stage="pivots", wall_time=self.elapsed(), solver_time=seconds,
             sqrt_gamma_minus_1=sqrt_gamma_minus_1, max_displacement=max_displacement,

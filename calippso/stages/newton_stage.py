@@ -26,7 +26,8 @@ __all__ = ["NewtonOutcome", "newton", "newton_or_pivots", "record_pivots", "TRIE
 TRIED_BEFORE = "tried before"
 #: With ``crossover="off"`` the Newton stage runs after every LP: contact pivots repair its
 #: network only when at most this many forces come out non-positive, and take at most this
-#: many pivots (a network further off is left to the next LP, which sees all of it at once).
+#: many pivots (a network further off is left to the next LP, which sees all of it at once,
+#: from where the pivots stopped).
 INTERIOR_PIVOTS = 40
 
 
@@ -129,13 +130,36 @@ def newton_or_pivots(run: Run, state: LoopState,
         budget = {"max_pivots": INTERIOR_PIVOTS}
     path, _ = pivot_to_jamming(state.positions, state.diameters, run.box, network.i,
                                network.j, network.rattlers, refined=refinement, **budget)
-    if path is None or not path.jammed:
+    if path is None:
+        return state, outcome
+    if not path.jammed:
+        if settings.crossover == "off" and path.pivots:
+            state = _where_the_pivots_stopped(run, state, path)
         return state, outcome
     record_pivots(run, path)
     pivoted = ContactNetwork(path.i, path.j, np.zeros(path.i.shape[0]), path.rattlers,
                              float("nan"), network.solver, from_lp=False)
     state, outcome = newton(run, state, pivoted, refined=path.refinement, guessed=True)
     return state, replace(outcome, pivoted=True)
+
+
+def _where_the_pivots_stopped(run: Run, state: LoopState, path: PivotPath) -> LoopState:
+    """The state at the end of a path of contact pivots that did not reach the jamming point
+    within its budget (``crossover="off"``): its vertex has a larger Γ than the LP's network
+    at its Newton point, and no overlap, so the next LP starts there and the pivots' work
+    is kept. Adds the path's history record (stage "pivots") and a note."""
+    refinement = path.refinement
+    moved = run.packing_of(refinement.positions, refinement.diameters)
+    record = run.history.add_pivots(
+        seconds=path.seconds, pivots=path.pivots,
+        sqrt_gamma_minus_1=refinement.sqrt_gamma_minus_1,
+        max_displacement=refinement.max_displacement, n_contacts=int(path.i.shape[0]),
+        n_stable=int((~path.rattlers).sum()), min_gap=float("nan"), phi=moved.phi)
+    run.history.note(f"after LP {run.history.lps_solved}, {path.pivots} contact pivot(s) in "
+                     f"{path.seconds:.2f} s did not reach a jamming point; the next LP "
+                     f"starts where they stopped")
+    run.report(record, moved, run.history.lps_solved)
+    return run.moved(state, refinement.positions, refinement.diameters)
 
 
 def record_pivots(run: Run, path: PivotPath) -> None:
