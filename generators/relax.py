@@ -22,36 +22,41 @@ from calippso.periodic import displacements, wrap
 from ._checks import check_boundaries, check_positive, phi_estimate
 from .checkpoint import Checkpoint, digest
 from .result import GenerationResult
-from .soft_quench import (BOUNDARY_KINDS, PHI_START_FACTOR, TARGET_AIM, _check_box,
-                          _pressure_ladder, _Run, _SoftSpheres, check_quench_options,
-                          quench_and_shrink)
+from .soft_quench import (BOUNDARY_KINDS, PHI_START_FACTOR, TARGET_AIM, _check_box, _Run,
+                          _SoftSpheres, check_quench_options, quench_and_shrink)
 
-__all__ = ["relax", "RELAX_START_PRESSURE"]
+__all__ = ["relax", "RELAX_START_PRESSURE", "RELAX_PRESSURE_REDUCTION"]
 
 #: Pressure of the first minimisation of `relax` (ε / (mean diameter)^d): the input is
 #: inflated to it. Lower than the quench's 1e-2 from random centres, since the input is
 #: already near a jamming point and every rung above it would move it further.
 RELAX_START_PRESSURE = 1e-4
+#: Smallest factor between the pressures of two successive minimisations of `relax` when
+#: the caller gives none: the quench's (`soft_quench.PRESSURE_REDUCTION`); the ladder's
+#: cost against its factor: docs/notes/relaxed-route.md.
+RELAX_PRESSURE_REDUCTION = 0.1
 
 
 def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
           target_pressure: float | None = None, force_tolerance: float = 1e-6,
           progress: bool = False, skin: float = 0.2, max_steps: int = 50_000_000,
           checkpoint: str | os.PathLike | None = None, checkpoint_every: float = 60.0,
-          minimiser: str = "auto", max_displacement: float | None = None) -> GenerationResult:
+          minimiser: str = "auto", max_displacement: float | None = None,
+          pressure_reduction: float = RELAX_PRESSURE_REDUCTION) -> GenerationResult:
     """Relax a configuration as harmonic soft spheres to a vanishing pressure, then shrink
     it to hard contact, in its own box.
 
     The particles keep their positions as the start and their diameters' ratios; the box
     and the boundaries do not change. The diameters are inflated (one common factor, a
     degree of freedom of the enthalpy H = E + p* V) to the pressure `start_pressure` and
-    the enthalpy is minimised; the pressure then goes down in factors of at most 10 to half
-    of `target_pressure`, and the last minimum is tightened and shrunk to hard contact
-    exactly as in `soft_quench` (same minimisers, same convergence tests, same shrink). The
-    common translation of the particles along the periodic axes is taken out at the end.
-    Given `max_displacement`, the relaxation stops as soon as a particle lies further than
-    that from its place in the input (checked every 1000 minimiser steps and at every list
-    rebuild), and returns the state it reached, shrunk to hard contact.
+    the enthalpy is minimised; the pressure then goes down in equal factors of at least
+    `pressure_reduction` to half of `target_pressure`, and the last minimum is tightened and
+    shrunk to hard contact exactly as in `soft_quench` (same minimisers, same convergence
+    tests, same shrink). The common translation of the particles along the periodic axes
+    is taken out at the end. Given `max_displacement`, the relaxation stops as soon as a
+    particle lies further than that from its place in the input (checked every 1000
+    minimiser steps and at every list rebuild), and returns the state it reached, shrunk to
+    hard contact.
 
     Parameters
     ----------
@@ -74,6 +79,9 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
         Stop once a particle lies further than this from the input (mean diameters of the
         input; minimum image, common translation along the periodic axes taken out). The
         status then names the particle and its distance. None: no bound.
+    pressure_reduction : float
+        Smallest factor between two successive pressures of the ladder, in (0, 1) (default
+        0.1, as `soft_quench`: from 1e-4 to half the default target of 1e-6 in three steps).
 
     Returns
     -------
@@ -94,9 +102,9 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     ------
     ValueError
         On a packing that is not a `calippso.Packing`, non-positive pressures, tolerance,
-        skin or `max_displacement`, a start pressure below the target, a non-positive
-        max_steps, too few particles for the box, or a checkpoint file that belongs to
-        another run.
+        skin or `max_displacement`, a `pressure_reduction` outside (0, 1), a start pressure
+        below the target, a non-positive max_steps, too few particles for the box, or a
+        checkpoint file that belongs to another run.
     """
     wall = time.perf_counter()
     if not isinstance(packing, Packing):
@@ -108,13 +116,16 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     start_pressure = check_positive(start_pressure, "start_pressure")
     if max_displacement is not None:
         max_displacement = check_positive(max_displacement, "max_displacement")
+    if not 0.0 < pressure_reduction < 1.0:
+        raise ValueError(f"pressure_reduction must lie in (0, 1), got {pressure_reduction!r}")
     if start_pressure < target_pressure:
         raise ValueError(f"start_pressure {start_pressure:g} is below target_pressure "
                          f"{target_pressure:g}")
     signature = {"input": digest(packing.positions, packing.diameters, packing.box),
                  "boundaries": str(boundaries), "start_pressure": start_pressure,
                  "target_pressure": target_pressure, "force_tolerance": force_tolerance,
-                 "skin": skin, "minimiser": minimiser}
+                 "skin": skin, "minimiser": minimiser,
+                 "pressure_reduction": pressure_reduction}
     saver = Checkpoint(checkpoint, "relax", signature,
                        every=check_positive(checkpoint_every, "checkpoint_every",
                                             allow_zero=True))
@@ -126,8 +137,8 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
                max(packing.phi, PHI_START_FACTOR * phi_estimate(d)), boundaries.periodic)
     system = _SoftSpheres(start, nominal, box, skin, minimiser, boundaries.periodic,
                           boundaries.cylinder_axes)
-    run = _Run(_pressure_ladder(TARGET_AIM * target_pressure, start_pressure),
-               force_tolerance, max_steps)
+    run = _Run(pressure_ladder(start_pressure, TARGET_AIM * target_pressure,
+                               pressure_reduction), force_tolerance, max_steps)
     watch = None if max_displacement is None else _Bound(start, box, boundaries.periodic,
                                                          max_displacement)
     result = quench_and_shrink(system, run, saver, packing.diameters, boundaries,
@@ -135,6 +146,17 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     result.extra.update(rungs=run.ladder.copy(),
                         halted=watch is not None and watch.reason is not None)
     return _aligned(result, packing, start_pressure)
+
+
+def pressure_ladder(first: float, final: float, reduction: float) -> np.ndarray:
+    """Pressures of the minimisations, geometric from `first` down to `final` in the fewest
+    equal factors no smaller than `reduction` (`final` alone if it is not below `first`)."""
+    if final >= first:
+        return np.array([final])
+    steps = int(np.ceil(np.log(first / final) / np.log(1.0 / reduction)))
+    ladder = first * (final / first) ** (np.arange(steps + 1) / steps)
+    ladder[-1] = final
+    return ladder
 
 
 class _Bound:

@@ -149,6 +149,17 @@ def test_bad_route_options_are_named(spheres, route, options, message):
         calippso.jam(spheres, route=route, **options)
 
 
+def test_the_ladder_goes_down_in_equal_factors_no_smaller_than_asked(spheres):
+    from generators.relax import pressure_ladder
+
+    ladder = pressure_ladder(1e-4, 5e-8, 0.01)         # 2000 = 100^1.65: two factors
+    np.testing.assert_allclose(ladder, [1e-4, np.sqrt(1e-4 * 5e-8), 5e-8], rtol=1e-12)
+    assert pressure_ladder(1e-4, 5e-7, 0.1).size == 4  # the quench's factor: three
+    np.testing.assert_array_equal(pressure_ladder(1e-6, 1e-5, 0.01), [1e-5])
+    with pytest.raises(ValueError, match="pressure_reduction must lie in"):
+        generators.relax(spheres, pressure_reduction=1.0)
+
+
 @pytest.mark.parametrize("d, sizes", [
     (2, dist.bidisperse(256, 1.4)),     # 1:1.4 discs do not crystallise
     pytest.param(5, dist.monodisperse(256), marks=pytest.mark.slow),    # ~30 s
