@@ -17,6 +17,7 @@ from calippso import settings as settings_module
 from calippso.settings import INTERIOR_LP_MIN_COLUMNS, JamSettings
 from calippso.solvers import LPSolution
 from calippso.solvers.highs import HighsOptions, solve
+from calippso.stages import network_first as network_first_stage
 from calippso.stages.newton_stage import INTERIOR_PIVOTS
 from calippso.step import analyse
 
@@ -168,10 +169,17 @@ def test_in_a_cylinder():
     assert_jammed_in_a_cylinder(result)
 
 
-def test_a_refused_hint_starts_the_lps_where_network_first_got_to():
+@pytest.mark.parametrize("separated", [True, False], ids=["moved apart", "shrunk"])
+def test_a_refused_hint_starts_the_lps_where_network_first_got_to(separated, monkeypatch):
     """An LS state at p = 1e5 with its jammed network 20 swaps off as the hint: network
     first refuses it, and the LPs start from the jamming point its rounds reached, at the
-    bound of its gap spectrum; they end at the LP path's jamming point."""
+    bound of its gap spectrum; they end at the LP path's jamming point. The particles that
+    overlap there are moved apart by a small LP, or, when more than `MAX_SEPARATED` overlap
+    (here: any), every diameter shrinks by the worst overlap instead."""
+    if not separated:
+        monkeypatch.setattr(network_first_stage, "MAX_SEPARATED", 0)
+        monkeypatch.setattr(network_first_stage, "separate_rattlers",
+                            lambda *args: pytest.fail("the separating LP ran"))
     start, source = jammed_from_ls(3, 128, False, pressure=1e5)
     packing = source.packing
     close = NeighborSearch(packing.positions, packing.diameters, packing.box).pairs_within(

@@ -37,6 +37,11 @@ __all__ = ["Certified", "network_first", "fallback_start", "MAX_NETWORK_GUESSES"
 #: Candidate networks the network-first stage settles at most (each costs a few sparse
 #: factorisations).
 MAX_NETWORK_GUESSES = 3
+#: The LP loop's start after a refused candidate moves at most this many overlapping
+#: particles apart by a small LP (`calippso.rattlers.separate_rattlers`); with more, that LP
+#: is as large as the loop's own (minutes at N = 8192), and every diameter shrinks by the
+#: worst overlap instead.
+MAX_SEPARATED = 256
 
 
 @dataclass(frozen=True)
@@ -118,7 +123,8 @@ def fallback_start(run: Run, state: LoopState, reached: Refinement,
 
     Its rattlers were not moved while the diameters grew, so the particles that overlap
     there are moved apart by the small LP of `calippso.rattlers.separate_rattlers` (or,
-    where that finds no room, every diameter shrinks by the worst overlap). The first
+    where that finds no room or more than `MAX_SEPARATED` particles overlap, every diameter
+    shrinks by the worst overlap). The first
     bound is the candidate's near gap (clipped to the settings' range): the pairs that
     may still close lie within it.
 
@@ -137,7 +143,8 @@ def fallback_start(run: Run, state: LoopState, reached: Refinement,
     if overlapping.any():
         movable = np.zeros(run.n, dtype=bool)
         movable[close.i[overlapping]] = movable[close.j[overlapping]] = True
-        separated = separate_rattlers(positions, diameters, run.box, movable)
+        separated = (separate_rattlers(positions, diameters, run.box, movable)
+                     if movable.sum() <= MAX_SEPARATED else None)
         if separated is not None:
             positions, moved_apart = separated, int(movable.sum())
             search = run.search(positions, diameters)
