@@ -64,11 +64,10 @@ WIDENING = 4.0
 #: the restricted LP at the point they reached (each pivot costs up to a sparse LU).
 ROUND_PIVOTS = 40
 #: Contact pivots the network-first stage takes at most over all its rounds and candidates.
-#: A pivot costs about 1/16 of one interior-point LP of the same packing at N = 8192 and
-#: 16384 (2.5-3 s against 44-100 s on 2 cores), so the budget bounds the stage at about
-#: six LPs' worth of time before a network that far off goes to the LP loop, which sees all of
-#: it at once; the inputs that network first certifies take a few to a few tens of pivots.
-STAGE_PIVOTS = 100
+#: The N = 8192 quenches that it certifies took 0 to 18 (seeds 1-5), at 3-6 s each there,
+#: about a tenth of one interior-point LP of the same packing: a network that needs more is
+#: left to the LP loop, which sees all of it at once.
+STAGE_PIVOTS = 32
 #: A pair of stable particles outside the network may overlap at its jamming point by at most
 #: this relative gap (round-off); the same tolerance as the certificate of `jam`.
 OVERLAP_TOLERANCE = 1e-12
