@@ -178,9 +178,9 @@ def jam_record(result, source, output: Path | None) -> dict:
 @checkpoint_option
 @container_options
 @output_options
-def jam(input_path, output, solver, interior_point, crossover, tol_gamma, tol_s, max_iters, time_limit,
-        precompress_pressure, network_first, pivots, network_path, route, max_displacement,
-        box_mode, test_category, checkpoint, container, out):
+def jam(input_path, output, solver, interior_point, crossover, tol_gamma, tol_s, max_iters,
+        time_limit, precompress_pressure, network_first, pivots, network_path, route,
+        max_displacement, box_mode, test_category, checkpoint, container, out):
     """Jam the packing in INPUT with CALiPPSO; write the result to OUTPUT.
 
     A .npz or .h5 OUTPUT keeps the full result (contacts, forces, rattlers, history).
