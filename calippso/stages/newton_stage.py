@@ -148,6 +148,16 @@ def _where_the_pivots_stopped(run: Run, state: LoopState, path: PivotPath) -> Lo
     within its budget (``crossover="off"``): its vertex has a larger Γ than the LP's network
     at its Newton point, and no overlap, so the next LP starts there and the pivots' work
     is kept. Adds the path's history record (stage "pivots") and a note."""
+    record_pivots(run, path, note=f"after LP {run.history.lps_solved}, {path.pivots} contact "
+                                  f"pivot(s) in {path.seconds:.2f} s did not reach a jamming "
+                                  f"point; the next LP starts where they stopped")
+    return run.moved(state, path.refinement.positions, path.refinement.diameters)
+
+
+def record_pivots(run: Run, path: PivotPath, note: str | None = None) -> None:
+    """Add the history record (stage "pivots") and the note of a path of contact pivots: by
+    default `describe_path`'s, for a path that reached a jamming point (its Newton
+    certificate is recorded next)."""
     refinement = path.refinement
     moved = run.packing_of(refinement.positions, refinement.diameters)
     record = run.history.add_pivots(
@@ -155,22 +165,5 @@ def _where_the_pivots_stopped(run: Run, state: LoopState, path: PivotPath) -> Lo
         sqrt_gamma_minus_1=refinement.sqrt_gamma_minus_1,
         max_displacement=refinement.max_displacement, n_contacts=int(path.i.shape[0]),
         n_stable=int((~path.rattlers).sum()), min_gap=float("nan"), phi=moved.phi)
-    run.history.note(f"after LP {run.history.lps_solved}, {path.pivots} contact pivot(s) in "
-                     f"{path.seconds:.2f} s did not reach a jamming point; the next LP "
-                     f"starts where they stopped")
-    run.report(record, moved, run.history.lps_solved)
-    return run.moved(state, refinement.positions, refinement.diameters)
-
-
-def record_pivots(run: Run, path: PivotPath) -> None:
-    """Add the history record (stage "pivots") and the note of a path of contact pivots
-    that reached a jamming point; its Newton certificate is recorded next."""
-    refinement = path.refinement
-    moved = run.packing_of(refinement.positions, refinement.diameters)
-    record = run.history.add_pivots(
-        seconds=path.seconds, pivots=path.pivots,
-        sqrt_gamma_minus_1=refinement.sqrt_gamma_minus_1,
-        max_displacement=refinement.max_displacement, n_contacts=int(path.i.shape[0]),
-        n_stable=int((~path.rattlers).sum()), min_gap=float("nan"), phi=moved.phi)
-    run.history.note(describe_path(path))
+    run.history.note(describe_path(path) if note is None else note)
     run.report(record, moved, run.history.lps_solved)
