@@ -135,7 +135,7 @@ def kernel_rows(n: int, d: int, seed: int, rungs: int) -> list[dict]:
     typical = quench.phi_estimate(d)
     start = poisson(sizes, d, phi=quench.PHI_START_FACTOR * typical, seed=seed)
     system = quench._SoftSpheres(start.positions, sizes, start.box, 0.2)
-    for pressure in quench._pressure_ladder(quench.TARGET_AIM * 1e-7)[:rungs]:
+    for pressure in quench.pressure_ladder(quench.FIRST_PRESSURE, quench.TARGET_AIM * 1e-7)[:rungs]:
         system.minimise(pressure, quench.INTERMEDIATE_TOLERANCE, 10**7)
     system.rebuild()
     x, s, box, lists = system.x, system.s, system.box, system.lists

@@ -23,7 +23,8 @@ from ._checks import check_boundaries, check_positive, phi_estimate
 from .checkpoint import Checkpoint, digest
 from .result import GenerationResult
 from .soft_quench import (BOUNDARY_KINDS, PHI_START_FACTOR, TARGET_AIM, _check_box, _Run,
-                          _SoftSpheres, check_quench_options, quench_and_shrink)
+                          _SoftSpheres, check_quench_options, pressure_ladder,
+                          quench_and_shrink)
 
 __all__ = ["relax", "RELAX_START_PRESSURE", "RELAX_PRESSURE_REDUCTION"]
 
@@ -146,17 +147,6 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     result.extra.update(rungs=run.ladder.copy(),
                         halted=watch is not None and watch.reason is not None)
     return _aligned(result, packing, start_pressure)
-
-
-def pressure_ladder(first: float, final: float, reduction: float) -> np.ndarray:
-    """Pressures of the minimisations, geometric from `first` down to `final` in the fewest
-    equal factors no smaller than `reduction` (`final` alone if it is not below `first`)."""
-    if final >= first:
-        return np.array([final])
-    steps = int(np.ceil(np.log(first / final) / np.log(1.0 / reduction)))
-    ladder = first * (final / first) ** (np.arange(steps + 1) / steps)
-    ladder[-1] = final
-    return ladder
 
 
 class _Bound:

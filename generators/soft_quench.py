@@ -29,7 +29,7 @@ from .periodic import all_periodic, wrap_into_box
 from .initial import poisson
 from .result import GenerationResult, make_history
 
-__all__ = ["soft_quench", "default_target_pressure"]
+__all__ = ["soft_quench", "default_target_pressure", "pressure_ladder"]
 
 #: FIRE base time step, in units of √(m σ²/ε) for the smallest diameter σ, at d = 3. It is
 #: scaled by √(3/d) because the stiffest mode grows with the number of contacts (~2d).
@@ -444,13 +444,13 @@ class _SoftSpheres(Resumable):
         return out
 
 
-def _pressure_ladder(final: float, first: float = FIRST_PRESSURE) -> np.ndarray:
-    """Pressures of the minimisations: geometric from `first` down to `final`, in steps no
-    larger than a factor 1/`PRESSURE_REDUCTION` (a single one if `final` is higher).
-    """
+def pressure_ladder(first: float, final: float,
+                    reduction: float = PRESSURE_REDUCTION) -> np.ndarray:
+    """Pressures of the minimisations, geometric from `first` down to `final` in the fewest
+    equal factors no smaller than `reduction` (`final` alone if it is not below `first`)."""
     if final >= first:
         return np.array([final])
-    steps = int(np.ceil(np.log(first / final) / np.log(1.0 / PRESSURE_REDUCTION)))
+    steps = int(np.ceil(np.log(first / final) / np.log(1.0 / reduction)))
     ladder = first * (final / first) ** (np.arange(steps + 1) / steps)
     ladder[-1] = final
     return ladder
@@ -650,7 +650,8 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
     _check_box(box, nominal, skin, phi_start, PHI_START_FACTOR * typical, boundaries.periodic)
     system = _SoftSpheres(start.positions / mean, nominal, box, skin, minimiser,
                           boundaries.periodic, boundaries.cylinder_axes)
-    run = _Run(_pressure_ladder(TARGET_AIM * target_pressure), force_tolerance, max_steps)
+    run = _Run(pressure_ladder(FIRST_PRESSURE, TARGET_AIM * target_pressure),
+               force_tolerance, max_steps)
     return quench_and_shrink(system, run, saver, diameters, boundaries, target_pressure,
                              progress, wall)
 
@@ -753,7 +754,7 @@ class _Run:
     Attributes
     ----------
     ladder : ndarray
-        Pressures of the minimisations (`_pressure_ladder`).
+        Pressures of the minimisations (`pressure_ladder`).
     force_tolerance : float
         Tightest convergence of the last minimisation (see `soft_quench`).
     max_steps : int
