@@ -167,10 +167,11 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
     check_enough_particles(packing.n, packing.d)
     settings = settings.resolved(packing.n, packing.d)
 
-    def loop(start_packing: Packing, hint, saved) -> JammingResult:
+    def loop(start_packing: Packing, hint, saved, network_only: bool = False) -> JammingResult:
         start = time.perf_counter()
         hint = None if hint is None else check_network_hint(hint, start_packing.n)
-        run, state, saver, hint = _start(start_packing, settings, callback, saved, start,
+        chosen = replace(settings, network_first="require") if network_only else settings
+        run, state, saver, hint = _start(start_packing, chosen, callback, saved, start,
                                          hint, on_lp)
         return _run(run, state, saver, hint)
 

@@ -8,7 +8,10 @@ relaxed as soft spheres.
   network-first stage, and to the LPs when that stage refuses it. Inputs compressed at a
   constant rate (LS, FB → LS) keep collective channels along which the LPs slide them for
   tens to hundreds of LPs (docs/notes/wandering-phase.md); the relaxation settles them in a
-  nearby basin instead. Its jamming point is another one than the loop's, nearby.
+  nearby basin instead. Its jamming point is another one than the loop's, nearby. After
+  each rung of the ladder whose overlap network lies within `EARLY_MAX_EXCESS` contacts of
+  isostatic, network first (alone, no LP) tries that network, and the relaxation ends at
+  the first rung it certifies (`settle_early`).
 * ``route="auto"``: the relaxed route where the LP route is predicted to be slow
   (`lp_route_slow`), the LP route elsewhere.
 
@@ -32,8 +35,8 @@ from .packing import Packing
 from .periodic import displacements
 from .result import JammingResult
 
-__all__ = ["ROUTES", "DEFAULT_MAX_DISPLACEMENT", "AUTO_MIN_PARTICLES", "check_route",
-           "gap_spread", "lp_route_slow", "jam_by_route", "relaxed_checkpoint"]
+__all__ = ["ROUTES", "DEFAULT_MAX_DISPLACEMENT", "AUTO_MIN_PARTICLES", "EARLY_MAX_EXCESS",
+           "check_route", "gap_spread", "lp_route_slow", "jam_by_route", "relaxed_checkpoint"]
 
 #: Values of ``jam(..., route=...)``.
 ROUTES = ("lp", "relaxed", "auto")
@@ -57,6 +60,10 @@ AUTO_SPREAD_DECADES = 1.7
 #: The spread of `gap_spread` is between the gap of this rank (a fraction of the first rigid
 #: network's count) and the largest gap of that network.
 SPREAD_FROM_RANK = 0.5
+#: The relaxed route tries the overlap network of a rung of the ladder above the last one
+#: by network first only when it has at most this many contacts beyond the isostatic count
+#: (and is not hypostatic); None: never, the whole ladder runs.
+EARLY_MAX_EXCESS: int | None = None
 
 
 def check_route(route: str, max_displacement: float | None, network) -> None:
@@ -183,7 +190,9 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
                         max_displacement)
     limit = DEFAULT_MAX_DISPLACEMENT if max_displacement is None else max_displacement
     relaxed_at = time.perf_counter()
-    relaxation = _relax(packing, checkpoint, limit)
+    early = _EarlyNetwork(loop, packing.boundaries.is_periodic)
+    relaxation = _relax(packing, checkpoint, limit,
+                        None if EARLY_MAX_EXCESS is None else early)
     relaxing = time.perf_counter() - relaxed_at
     if relaxation.extra["max_displacement"] > limit:
         message = _too_far(relaxation.extra, limit, len(relaxation.history))
@@ -195,23 +204,83 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
                             f"the LP route ran")
         return _bounded(result, max_displacement)
     hint = relaxation.contacts if packing.boundaries.is_periodic else None
-    result = _recorded(loop(relaxation.packing, hint, checkpoint), packing, "relaxed")
+    jammed = early.certified if relaxation.extra["settled"] else \
+        loop(relaxation.packing, hint, checkpoint)
+    result = _recorded(jammed, packing, "relaxed")
     if reason is not None:
         result.notes.append(f"route 'auto' took the relaxed route: {reason}")
+    rungs = relaxation.extra["rungs"]
     result.notes.append(f"the soft-sphere relaxation took {relaxing:.1f} s "
-                        f"({relaxation.steps} minimiser steps, {relaxation.extra['minimiser']})")
+                        f"({relaxation.steps} minimiser steps, {relaxation.extra['minimiser']}; "
+                        f"{relaxation.extra['rung']} of {len(rungs)} rungs of its ladder"
+                        f"{early.summary()})")
     words = _in_words(result, relaxation.extra, reason)
     result = replace(result, status=f"{result.status} {words}",
                      wall_time=time.perf_counter() - started)
     return _bounded(result, limit)
 
 
-def _relax(packing: Packing, checkpoint: str | os.PathLike | None, limit: float):
+def _relax(packing: Packing, checkpoint: str | os.PathLike | None, limit: float,
+           settle: Callable | None):
     """`generators.relax` of the input, stopped once a particle lies further than `limit`
-    from it (imported here: the generators load numba)."""
+    from it, or at the rung `settle` accepts (imported here: the generators load numba)."""
     from generators import relax
 
-    return relax(packing, checkpoint=relaxed_checkpoint(checkpoint), max_displacement=limit)
+    return relax(packing, checkpoint=relaxed_checkpoint(checkpoint), max_displacement=limit,
+                 settle=settle)
+
+
+class _EarlyNetwork:
+    """The relaxed route's test after each rung of the ladder but the last
+    (`generators.relax(settle=...)`): network first alone on the rung's overlap network.
+
+    Parameters
+    ----------
+    loop : callable
+        The CALiPPSO loop, ``loop(packing, network, checkpoint, network_only=True)``:
+        network first with no LP, JammingError when it certifies no network.
+    periodic : bool
+        The input's box is periodic (the overlap network is then handed in as the hint;
+        in a container network first reads the contacts from the gaps).
+
+    Attributes
+    ----------
+    certified : JammingResult or None
+        The result of the rung that network first certified.
+    tried : list of tuple
+        One (rung, seconds, certified) per rung tried.
+    """
+
+    def __init__(self, loop: Callable, periodic: bool) -> None:
+        self.loop, self.periodic = loop, periodic
+        self.certified: JammingResult | None = None
+        self.tried: list[tuple[int, float, bool]] = []
+
+    def __call__(self, reached) -> str | None:
+        """None to go on down the ladder, or why the relaxation ends at `reached` (a
+        `generators.GenerationResult` shrunk to hard contact at the end of a rung)."""
+        excess = reached.extra["isostaticity_gap"]
+        if not 0 <= excess <= EARLY_MAX_EXCESS:
+            return None
+        started = time.perf_counter()
+        try:
+            self.certified = self.loop(reached.packing,
+                                       reached.contacts if self.periodic else None, None,
+                                       network_only=True)
+        except JammingError:
+            self.tried.append((reached.extra["rung"], time.perf_counter() - started, False))
+            return None
+        self.tried.append((reached.extra["rung"], time.perf_counter() - started, True))
+        return (f"network first certified the overlap network of rung "
+                f"{reached.extra['rung']} ({excess} contacts beyond isostatic)")
+
+    def summary(self) -> str:
+        """The rungs tried, in words for the notes ("" when none was)."""
+        if not self.tried:
+            return ""
+        words = ", ".join(f"rung {rung} {'certified' if ok else 'refused'} in {seconds:.1f} s"
+                          for rung, seconds, ok in self.tried)
+        return f"; network first tried the overlap network of {words}"
 
 
 def _too_far(relaxed: dict, limit: float, begun: int) -> str:
@@ -248,8 +317,11 @@ def _bounded(result: JammingResult, max_displacement: float | None) -> JammingRe
 def _in_words(result: JammingResult, relaxed: dict, reason: str | None) -> str:
     """The sentence the relaxed route adds to the status."""
     chosen = "" if reason is None else " (chosen by route 'auto')"
+    ended = (f" (rung {relaxed['rung']} of {len(relaxed['rungs'])} of the ladder, where "
+             f"network first certified its overlap network)" if relaxed["settled"] else "")
     return (f"Relaxed route{chosen}: the input was relaxed as soft spheres from pressure "
-            f"{relaxed['start_pressure']:.0e} to {relaxed['pressure']:.1e} before the loop; "
+            f"{relaxed['start_pressure']:.0e} to {relaxed['pressure']:.1e}{ended} before the "
+            f"loop; "
             f"the jamming point lies at most {result.displacement_max:.1e} and a median "
             f"{result.displacement_median:.1e} mean diameters from the input, phi "
             f"{result.phi_change:+.1e}.")

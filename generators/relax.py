@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from ._checks import check_boundaries, check_positive, phi_estimate
 from .checkpoint import Checkpoint, digest
 from .result import GenerationResult
 from .soft_quench import (BOUNDARY_KINDS, PHI_START_FACTOR, TARGET_AIM, _check_box, _Run,
-                          _SoftSpheres, check_quench_options, pressure_ladder,
+                          _shrunk_result, _SoftSpheres, check_quench_options, pressure_ladder,
                           quench_and_shrink)
 
 __all__ = ["relax", "RELAX_START_PRESSURE", "RELAX_PRESSURE_REDUCTION"]
@@ -43,7 +44,9 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
           progress: bool = False, skin: float = 0.2, max_steps: int = 50_000_000,
           checkpoint: str | os.PathLike | None = None, checkpoint_every: float = 60.0,
           minimiser: str = "auto", max_displacement: float | None = None,
-          pressure_reduction: float = RELAX_PRESSURE_REDUCTION) -> GenerationResult:
+          pressure_reduction: float = RELAX_PRESSURE_REDUCTION,
+          settle: Callable[[GenerationResult], str | None] | None = None
+          ) -> GenerationResult:
     """Relax a configuration as harmonic soft spheres to a vanishing pressure, then shrink
     it to hard contact, in its own box.
 
@@ -57,7 +60,8 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     is taken out at the end. Given `max_displacement`, the relaxation stops as soon as a
     particle lies further than that from its place in the input (checked every 1000
     minimiser steps and at every list rebuild), and returns the state it reached, shrunk to
-    hard contact.
+    hard contact. Given `settle`, the relaxation asks it after every rung but the last
+    whether the state reached is good enough, and ends there when it is.
 
     Parameters
     ----------
@@ -83,6 +87,13 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     pressure_reduction : float
         Smallest factor between two successive pressures of the ladder, in (0, 1) (default
         0.1, as `soft_quench`: from 1e-4 to half the default target of 1e-6 in three steps).
+    settle : callable, optional
+        ``settle(reached)`` after every converged rung of the ladder but the last, with
+        `reached` the state at that rung shrunk to hard contact (a `GenerationResult` as
+        returned, ``extra["rung"]`` its rung, counted from 1): None to go on down the
+        ladder, or the reason to end the relaxation there, in words (e.g. its network was
+        certified). The result is then that state, ``extra["settled"]`` the reason and the
+        status says where it ended.
 
     Returns
     -------
@@ -96,8 +107,9 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
         minimum image, common translation taken out, in mean diameters of the input),
         ``farthest`` (the particle that moved furthest) and
         ``translation`` (the common translation taken out, shape (d,), length units);
-        ``rungs`` (pressures of the ladder) and ``halted`` (True when `max_displacement`
-        stopped the run: `history` then holds the rungs it began, the last one unfinished).
+        ``rungs`` (pressures of the ladder), ``rung`` (the rungs finished) and ``halted``
+        (True when `max_displacement` stopped the run: `history` then holds the rungs it
+        began, the last one unfinished); ``settled`` (the reason `settle` gave, or None).
 
     Raises
     ------
@@ -142,10 +154,23 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
                                pressure_reduction), force_tolerance, max_steps)
     watch = None if max_displacement is None else _Bound(start, box, boundaries.periodic,
                                                          max_displacement)
+
+    def settled(reached: _SoftSpheres) -> str | None:
+        shrunk = _shrunk_result(reached, packing.diameters, float(packing.diameters.mean()),
+                                boundaries, run.rows,
+                                run.pressure, target_pressure,
+                                f"relaxed to pressure {run.pressure:.3g}, rung {run.rung} of "
+                                f"{len(run.ladder)}", wall, False, packing.box)
+        shrunk.extra.update(rungs=run.ladder.copy(), rung=run.rung, halted=False,
+                            settled=None)
+        return settle(_aligned(shrunk, packing, start_pressure))
+
     result = quench_and_shrink(system, run, saver, packing.diameters, boundaries,
-                               target_pressure, progress, wall, box=packing.box, watch=watch)
-    result.extra.update(rungs=run.ladder.copy(),
-                        halted=watch is not None and watch.reason is not None)
+                               target_pressure, progress, wall, box=packing.box, watch=watch,
+                               settled=None if settle is None else settled)
+    result.extra.update(rungs=run.ladder.copy(), rung=len(run.rows),
+                        halted=watch is not None and watch.reason is not None,
+                        settled=run.settled_by)
     return _aligned(result, packing, start_pressure)
 
 

@@ -107,6 +107,8 @@ BASE_PHASE, NEWTON_PHASE = 0.0, 1.0
 #: Code of a quench that its watch stopped (`quench_and_shrink`), beside the kernels' codes
 #: (`_fire.CONVERGED`, `_fire.REBUILD`, `_fire.OUT_OF_STEPS`).
 HALTED = 3
+#: Code of a quench that its `settled` test ended after a rung (`quench_and_shrink`).
+SETTLED = 4
 #: The minimisers `soft_quench` offers ("auto" picks one by the dimension).
 MINIMISERS = ("auto", "fire", "lbfgs", "newton")
 #: Where each minimiser's state array holds λ = ln a.
@@ -683,7 +685,8 @@ def check_quench_options(n: int, d: int, boundaries: Boundaries,
 def quench_and_shrink(system: _SoftSpheres, run: "_Run", saver: Checkpoint,
                       diameters: np.ndarray, boundaries: Boundaries, target_pressure: float,
                       progress: bool, wall: float, box: np.ndarray | None = None,
-                      watch: Callable[[_SoftSpheres], str | None] | None = None
+                      watch: Callable[[_SoftSpheres], str | None] | None = None,
+                      settled: Callable[[_SoftSpheres], str | None] | None = None
                       ) -> GenerationResult:
     """Walk `system` down the ladder of `run` (resuming from `saver`'s checkpoint, saving
     to it), then shrink it to hard contact (`_shrunk_result`).
@@ -712,6 +715,10 @@ def quench_and_shrink(system: _SoftSpheres, run: "_Run", saver: Checkpoint,
         ``watch(system)`` at every pause of a minimisation (`_SoftSpheres.minimise`):
         None to go on, or the reason to stop the quench there, in words. A stopped quench
         is saved to the checkpoint and shrunk as it stands; its status gives the reason.
+    settled : callable, optional
+        ``settled(system)`` after every converged rung but the last (`_Run.quench`): None
+        to go on down the ladder, or the reason to end the quench there, in words (the
+        state is shrunk as it stands; the status gives the reason).
     """
     earlier_wall = 0.0
     halted_by: list[str] = []
@@ -732,11 +739,13 @@ def quench_and_shrink(system: _SoftSpheres, run: "_Run", saver: Checkpoint,
 
     bar = Progress(progress, -np.log10(run.ladder[-1]), "soft quench -log10(p)")
     try:
-        code, pressure = run.quench(system, pause, bar)
+        code, pressure = run.quench(system, pause, bar, settled)
     finally:
         bar.close()
     if code == _fire.OUT_OF_STEPS:
         status = f"stopped at max_steps = {run.max_steps} (pressure {pressure:.3g})"
+    elif code == SETTLED:
+        status = f"ended early at pressure {pressure:.3g}: {run.settled_by}"
     elif code == HALTED:
         status = f"stopped at pressure {pressure:.3g}: {halted_by[-1]}"
     else:
@@ -770,6 +779,8 @@ class _Run:
         One history row per finished rung: (steps so far, φ, pressure, nan).
     pressure : float
         Pressure at the end of the last minimisation.
+    settled_by : str or None
+        Why the `settled` test of `quench` ended the quench, if it did.
     """
 
     ladder: np.ndarray
@@ -780,6 +791,7 @@ class _Run:
     previous: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.int64))
     rows: list = field(default_factory=list)
     pressure: float = float("nan")
+    settled_by: str | None = None
 
     def state(self) -> dict:
         """Where the run stands, for a checkpoint."""
@@ -802,14 +814,19 @@ class _Run:
         return tolerance
 
     def quench(self, system: _SoftSpheres, pause: Callable[[bool], bool],
-               bar: Progress) -> tuple[int, float]:
-        """Run the remaining minimisations: every rung of the ladder, the last one tightened.
+               bar: Progress,
+               settled: Callable[[_SoftSpheres], str | None] | None = None
+               ) -> tuple[int, float]:
+        """Run the remaining minimisations: every rung of the ladder, the last one tightened,
+        unless `settled` (called after every converged rung but the last) gives a reason to
+        end there (kept in `settled_by`).
 
         Returns
         -------
         code : int
-            `_fire.CONVERGED`, `_fire.OUT_OF_STEPS` when `max_steps` ran out, or `HALTED`
-            when `pause` stopped a minimisation.
+            `_fire.CONVERGED`, `_fire.OUT_OF_STEPS` when `max_steps` ran out, `HALTED`
+            when `pause` stopped a minimisation, or `SETTLED` when `settled` ended the
+            quench after a rung.
         pressure : float
             Pressure at the end.
         """
@@ -825,6 +842,10 @@ class _Run:
             if code != _fire.CONVERGED:     # (its checkpoint holds the minimisation)
                 return code, self.pressure
             self.rung, self.round = self.rung + 1, 0
+            if settled is not None and self.rung < len(self.ladder):
+                self.settled_by = settled(system)
+                if self.settled_by is not None:
+                    return SETTLED, self.pressure
         return _fire.CONVERGED, self.pressure
 
     def _tighten_again(self, system: _SoftSpheres) -> bool:
