@@ -13,6 +13,11 @@ the repository root:
     python bench/interior_lp.py --cases 3:2048 --tile 2 --cache /work/cache   # N = 16384
     python bench/interior_lp.py --cases 3:1024 --tolerance 1e-8 1e-10 1e-12 --json t.json
     python bench/interior_lp.py --cases 3:8192 --threads 2 --cache /work/cache
+    python bench/interior_lp.py --cases 3:8192 --cache /work/cache --hipo hipo_system=normaleq
+
+--hipo KEY=VALUE sets HiGHS options on the solve (HiPO's Newton system "augmented" or
+"normaleq", its ordering "metis", "amd" or "rcm", its block size), each case once per
+setting given, for a comparison with HiGHS's own choice.
 
 Columns: N, d, the LP's rows and columns, the interior point, seconds inside HiGHS, of which
 HiPO's analysis (ordering), its iterations, the factor's nonzeros, fill-in and flops (HiPO's
@@ -32,6 +37,7 @@ import sys
 import tempfile
 import time
 
+import highspy
 import numpy as np
 
 import calippso
@@ -79,8 +85,10 @@ def tiled(packing: Packing, k: int) -> Packing:
     return Packing(positions, np.tile(packing.diameters, len(shifts)), packing.box * k)
 
 
-def one_lp(packing: Packing, tolerance: float, interior_point: str, threads: int = 0) -> dict:
-    """Solve the first LP of `jam` on `packing` without crossover and read it (module doc)."""
+def one_lp(packing: Packing, tolerance: float, interior_point: str, threads: int = 0,
+           highs_options: dict[str, str | int] | None = None) -> dict:
+    """Solve the first LP of `jam` on `packing` without crossover and read it (module doc);
+    `highs_options` are set on HiGHS before the solve."""
     scale = packing.mean_diameter
     box = packing.box / scale
     positions, diameters = wrap(packing.positions / scale, box), packing.diameters / scale
@@ -99,6 +107,9 @@ def one_lp(packing: Packing, tolerance: float, interior_point: str, threads: int
         highs.setOptionValue("output_flag", True)   # HiPO logs to the console only
         if threads:
             highs.setOptionValue("threads", threads)
+        for key, value in (highs_options or {}).items():
+            if highs.setOptionValue(key, value) != highspy.HighsStatus.kOk:
+                raise SystemExit(f"HiGHS refused the option {key}={value!r}")
         began = time.perf_counter()
         with open(log, "w") as sink:
             sys.stdout.flush()
@@ -113,6 +124,7 @@ def one_lp(packing: Packing, tolerance: float, interior_point: str, threads: int
         highs.setOptionValue("output_flag", False)
         text = open(log).read()
     row = {"n": packing.n, "d": packing.d, "rows": lp.n_rows, "cols": lp.n_cols,
+           "highs_options": highs_options or {},
            "bound": bound, "tolerance": tolerance,
            "method": interior_point_for(lp, interior_point), "status": solution.status,
            "solver_s": solution.seconds, "ipm_iterations": solution.ipm_iterations}
@@ -146,13 +158,20 @@ def _model(lp):
     return highs_model(lp)
 
 
+def _option(text: str) -> tuple[str, str | int]:
+    """KEY=VALUE as a HiGHS option (integers as int)."""
+    key, _, value = text.partition("=")
+    return key, int(value) if value.lstrip("-").isdigit() else value
+
+
 def print_row(row: dict) -> None:
     print(f"{row['n']:6d} {row['d']:2d} {row['rows']:7d} {row['cols']:7d} {row['method']:>5} "
           f"{row['tolerance']:7.0e} {row['solver_s']:8.2f} {row['analyse_s']:7.2f} "
           f"{row['ipm_iterations']:4d} {row['factor_nnz']:9.2e} {row['fill_in']:6.1f} "
           f"{row['flops']:8.1e} {row['threads']:3.0f} {row['read_s']:6.3f} {row['margin']:6.2f} "
           f"{row['contacts']:7d} {row['isostaticity_gap']:5d} {row['newton_s']:7.2f} "
-          f"{row['positive']} ({row['nonpositive']})", flush=True)
+          f"{row['positive']} ({row['nonpositive']}) "
+          f"{' '.join(f'{k}={v}' for k, v in row['highs_options'].items())}", flush=True)
 
 
 def main() -> None:
@@ -168,8 +187,11 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=0,
                         help="HiGHS's threads (0: as jam runs it, "
                              "calippso.solvers.highs.highs_threads)")
+    parser.add_argument("--hipo", nargs="*", default=[], metavar="KEY=VALUE",
+                        help="HiGHS options to compare, one setting each (module doc)")
     parser.add_argument("--json", default="")
     args = parser.parse_args()
+    settings = [None] + [dict([_option(text)]) for text in args.hipo]
     inputs = [(path, lambda p=path: (calippso.read(p), 0.0)) for path in args.input]
     for case in args.cases if not args.input else []:
         d, n = map(int, case.split(":"))
@@ -183,10 +205,12 @@ def main() -> None:
         packing, made = make()
         packing = tiled(packing, args.tile)
         for tolerance in args.tolerance:
-            row = {"input": name, "tile": args.tile, "make_s": made,
-                   **one_lp(packing, tolerance, args.interior_point, args.threads)}
-            print_row(row)
-            rows.append(row)
+            for highs_options in settings:
+                row = {"input": name, "tile": args.tile, "make_s": made,
+                       **one_lp(packing, tolerance, args.interior_point, args.threads,
+                                highs_options)}
+                print_row(row)
+                rows.append(row)
     if args.json:
         with open(args.json, "w") as handle:
             json.dump(rows, handle, indent=1)
