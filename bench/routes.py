@@ -151,7 +151,9 @@ def format_row(row: dict) -> str:
                + " ".join(f"{q}: {x:.2g}" for q, x in row["displacement_quantiles"].items())
                + "; particles beyond "
                + " ".join(f"{x}: {k}" for x, k in row["displacement_beyond"].items())
-               + f"; the farthest {'a rattler' if row['farthest_is_rattler'] else 'stable'}"))
+               + f"; the farthest {'a rattler' if row['farthest_is_rattler'] else 'stable'}")
+            + "".join(f"\n         {note}" for note in row["notes"]
+                      if note.startswith("the soft-sphere relaxation")))
 
 
 def main() -> None:
@@ -171,8 +173,16 @@ def main() -> None:
     parser.add_argument("--max-displacement", type=float, default=None,
                         help="max_displacement of the relaxed and auto routes (mean "
                              "diameters; default: jam's)")
+    parser.add_argument("--early-excess", default=None,
+                        help="calippso.routes.EARLY_MAX_EXCESS for this run: an integer, or "
+                             "'none' for the whole ladder (default: the library's)")
     parser.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = parser.parse_args()
+    if args.early_excess is not None:
+        import calippso.routes
+
+        calippso.routes.EARLY_MAX_EXCESS = (None if args.early_excess == "none"
+                                            else int(args.early_excess))
     if args.input is not None:
         packing, name = calippso.read(args.input), str(args.input)
     else:

@@ -212,7 +212,7 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
     rungs = relaxation.extra["rungs"]
     result.notes.append(f"the soft-sphere relaxation took {relaxing:.1f} s "
                         f"({relaxation.steps} minimiser steps, {relaxation.extra['minimiser']}; "
-                        f"{relaxation.extra['rung']} of {len(rungs)} rungs of its ladder"
+                        f"ended in rung {relaxation.extra['rung']} of {len(rungs)} of its ladder"
                         f"{early.summary()})")
     words = _in_words(result, relaxation.extra, reason)
     result = replace(result, status=f"{result.status} {words}",
@@ -226,8 +226,9 @@ def _relax(packing: Packing, checkpoint: str | os.PathLike | None, limit: float,
     from it, or at the rung `settle` accepts (imported here: the generators load numba)."""
     from generators import relax
 
+    options = {} if settle is None else {"settle": settle, "settle_excess": EARLY_MAX_EXCESS}
     return relax(packing, checkpoint=relaxed_checkpoint(checkpoint), max_displacement=limit,
-                 settle=settle)
+                 **options)
 
 
 class _EarlyNetwork:
@@ -248,39 +249,44 @@ class _EarlyNetwork:
     certified : JammingResult or None
         The result of the rung that network first certified.
     tried : list of tuple
-        One (rung, seconds, certified) per rung tried.
+        One (where, seconds, certified) per network tried.
     """
 
     def __init__(self, loop: Callable, periodic: bool) -> None:
         self.loop, self.periodic = loop, periodic
         self.certified: JammingResult | None = None
-        self.tried: list[tuple[int, float, bool]] = []
+        self.tried: list[tuple[str, float, bool]] = []
+        self.seen: set[bytes] = set()
 
     def __call__(self, reached) -> str | None:
         """None to go on down the ladder, or why the relaxation ends at `reached` (a
-        `generators.GenerationResult` shrunk to hard contact at the end of a rung)."""
+        `generators.GenerationResult` shrunk to hard contact in or after a rung)."""
         excess = reached.extra["isostaticity_gap"]
-        if not 0 <= excess <= EARLY_MAX_EXCESS:
+        key = np.ascontiguousarray(reached.contacts).tobytes()
+        if not 0 <= excess <= EARLY_MAX_EXCESS or key in self.seen:
             return None
+        self.seen.add(key)
         started = time.perf_counter()
+        where = (f"{'during' if reached.extra['paused'] else 'at the end of'} rung "
+                 f"{reached.extra['rung']}")
         try:
             self.certified = self.loop(reached.packing,
                                        reached.contacts if self.periodic else None, None,
                                        network_only=True)
         except JammingError:
-            self.tried.append((reached.extra["rung"], time.perf_counter() - started, False))
+            self.tried.append((where, time.perf_counter() - started, False))
             return None
-        self.tried.append((reached.extra["rung"], time.perf_counter() - started, True))
-        return (f"network first certified the overlap network of rung "
-                f"{reached.extra['rung']} ({excess} contacts beyond isostatic)")
+        self.tried.append((where, time.perf_counter() - started, True))
+        return (f"network first certified the overlap network {where} ({excess} contacts "
+                f"beyond isostatic)")
 
     def summary(self) -> str:
-        """The rungs tried, in words for the notes ("" when none was)."""
+        """The networks tried, in words for the notes ("" when none was)."""
         if not self.tried:
             return ""
-        words = ", ".join(f"rung {rung} {'certified' if ok else 'refused'} in {seconds:.1f} s"
-                          for rung, seconds, ok in self.tried)
-        return f"; network first tried the overlap network of {words}"
+        words = ", ".join(f"{where} {'certified' if ok else 'refused'} in {seconds:.1f} s"
+                          for where, seconds, ok in self.tried)
+        return f"; network first tried the overlap network {words}"
 
 
 def _too_far(relaxed: dict, limit: float, begun: int) -> str:
@@ -317,7 +323,7 @@ def _bounded(result: JammingResult, max_displacement: float | None) -> JammingRe
 def _in_words(result: JammingResult, relaxed: dict, reason: str | None) -> str:
     """The sentence the relaxed route adds to the status."""
     chosen = "" if reason is None else " (chosen by route 'auto')"
-    ended = (f" (rung {relaxed['rung']} of {len(relaxed['rungs'])} of the ladder, where "
+    ended = (f" (in rung {relaxed['rung']} of {len(relaxed['rungs'])} of the ladder, where "
              f"network first certified its overlap network)" if relaxed["settled"] else "")
     return (f"Relaxed route{chosen}: the input was relaxed as soft spheres from pressure "
             f"{relaxed['start_pressure']:.0e} to {relaxed['pressure']:.1e}{ended} before the "

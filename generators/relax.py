@@ -27,7 +27,7 @@ from .soft_quench import (BOUNDARY_KINDS, PHI_START_FACTOR, TARGET_AIM, _check_b
                           _shrunk_result, _SoftSpheres, check_quench_options, pressure_ladder,
                           quench_and_shrink)
 
-__all__ = ["relax", "RELAX_START_PRESSURE", "RELAX_PRESSURE_REDUCTION"]
+__all__ = ["relax", "RELAX_START_PRESSURE", "RELAX_PRESSURE_REDUCTION", "SETTLE_EXCESS"]
 
 #: Pressure of the first minimisation of `relax` (ε / (mean diameter)^d): the input is
 #: inflated to it. Lower than the quench's 1e-2 from random centres, since the input is
@@ -37,6 +37,9 @@ RELAX_START_PRESSURE = 1e-4
 #: the caller gives none: the quench's (`soft_quench.PRESSURE_REDUCTION`); the ladder's
 #: cost against its factor: docs/notes/relaxed-route.md.
 RELAX_PRESSURE_REDUCTION = 0.1
+#: `relax` asks its `settle` only about overlap networks with at most this many contacts
+#: beyond the isostatic count when the caller gives no other bound.
+SETTLE_EXCESS = 4
 
 
 def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
@@ -45,8 +48,8 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
           checkpoint: str | os.PathLike | None = None, checkpoint_every: float = 60.0,
           minimiser: str = "auto", max_displacement: float | None = None,
           pressure_reduction: float = RELAX_PRESSURE_REDUCTION,
-          settle: Callable[[GenerationResult], str | None] | None = None
-          ) -> GenerationResult:
+          settle: Callable[[GenerationResult], str | None] | None = None,
+          settle_excess: int = SETTLE_EXCESS) -> GenerationResult:
     """Relax a configuration as harmonic soft spheres to a vanishing pressure, then shrink
     it to hard contact, in its own box.
 
@@ -60,8 +63,9 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     is taken out at the end. Given `max_displacement`, the relaxation stops as soon as a
     particle lies further than that from its place in the input (checked every 1000
     minimiser steps and at every list rebuild), and returns the state it reached, shrunk to
-    hard contact. Given `settle`, the relaxation asks it after every rung but the last
-    whether the state reached is good enough, and ends there when it is.
+    hard contact. Given `settle`, the relaxation asks it after every rung but the last, and
+    within a rung where the overlap network stops changing, whether the state reached will
+    do, and ends there when it will.
 
     Parameters
     ----------
@@ -88,12 +92,21 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
         Smallest factor between two successive pressures of the ladder, in (0, 1) (default
         0.1, as `soft_quench`: from 1e-4 to half the default target of 1e-6 in three steps).
     settle : callable, optional
-        ``settle(reached)`` after every converged rung of the ladder but the last, with
-        `reached` the state at that rung shrunk to hard contact (a `GenerationResult` as
-        returned, ``extra["rung"]`` its rung, counted from 1): None to go on down the
-        ladder, or the reason to end the relaxation there, in words (e.g. its network was
-        certified). The result is then that state, ``extra["settled"]`` the reason and the
-        status says where it ended.
+        ``settle(reached)`` after every converged rung of the ladder but the last, and at
+        every pause of a minimisation (every 1000 minimiser steps, every list rebuild)
+        where the overlap network without rattlers has not changed since the previous
+        pause, each network once, when that network is neither hypostatic nor more than
+        `settle_excess` contacts beyond isostatic; `reached` is the state shrunk to hard
+        contact (a
+        `GenerationResult` as returned, ``extra["rung"]`` its rung counted from 1,
+        ``extra["paused"]`` True within a minimisation). It returns None to go on, or the
+        reason to end the relaxation there, in words (e.g. its network was certified). The
+        result is then that state, ``extra["settled"]`` the reason, and the status says
+        where it ended. A state handed to `settle` is shrunk from a fresh neighbour list,
+        which changes the order of the floating-point sums, hence the minimiser's path,
+        from a run without `settle`.
+    settle_excess : int
+        See `settle` (default `SETTLE_EXCESS`).
 
     Returns
     -------
@@ -107,7 +120,7 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
         minimum image, common translation taken out, in mean diameters of the input),
         ``farthest`` (the particle that moved furthest) and
         ``translation`` (the common translation taken out, shape (d,), length units);
-        ``rungs`` (pressures of the ladder), ``rung`` (the rungs finished) and ``halted``
+        ``rungs`` (pressures of the ladder), ``rung`` (the rungs in `history`) and ``halted``
         (True when `max_displacement` stopped the run: `history` then holds the rungs it
         began, the last one unfinished); ``settled`` (the reason `settle` gave, or None).
 
@@ -152,26 +165,92 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
                           boundaries.cylinder_axes)
     run = _Run(pressure_ladder(start_pressure, TARGET_AIM * target_pressure,
                                pressure_reduction), force_tolerance, max_steps)
-    watch = None if max_displacement is None else _Bound(start, box, boundaries.periodic,
+    bound = None if max_displacement is None else _Bound(start, box, boundaries.periodic,
                                                          max_displacement)
+    asker = None if settle is None else _Asker(settle, settle_excess, packing, boundaries,
+                                                run, target_pressure, start_pressure, wall)
 
-    def settled(reached: _SoftSpheres) -> str | None:
-        shrunk = _shrunk_result(reached, packing.diameters, float(packing.diameters.mean()),
-                                boundaries, run.rows,
-                                run.pressure, target_pressure,
-                                f"relaxed to pressure {run.pressure:.3g}, rung {run.rung} of "
-                                f"{len(run.ladder)}", wall, False, packing.box)
-        shrunk.extra.update(rungs=run.ladder.copy(), rung=run.rung, halted=False,
-                            settled=None)
-        return settle(_aligned(shrunk, packing, start_pressure))
+    def watch(reached: _SoftSpheres) -> str | None:
+        if bound is not None and bound(reached) is not None:
+            return bound.reason
+        return None if asker is None else asker.at_pause(reached)
 
     result = quench_and_shrink(system, run, saver, packing.diameters, boundaries,
-                               target_pressure, progress, wall, box=packing.box, watch=watch,
-                               settled=None if settle is None else settled)
+                               target_pressure, progress, wall, box=packing.box,
+                               watch=None if bound is None and asker is None else watch,
+                               settled=None if asker is None else asker.after_rung)
     result.extra.update(rungs=run.ladder.copy(), rung=len(run.rows),
-                        halted=watch is not None and watch.reason is not None,
-                        settled=run.settled_by)
+                        halted=bound is not None and bound.reason is not None,
+                        settled=run.settled_by or (None if asker is None else asker.reason))
     return _aligned(result, packing, start_pressure)
+
+
+class _Asker:
+    """When `relax` asks its caller's `settle` whether the state reached will do, and what it
+    hands it: the state shrunk to hard contact, after every rung but the last
+    (`after_rung`), and at a pause of a minimisation where the overlap network without
+    rattlers is the same as at the previous pause (`at_pause`); each network once, and
+    only one within `excess` contacts of isostatic, not hypostatic.
+
+    Attributes
+    ----------
+    reason : str or None
+        What `settle` answered at a pause, if it ended the relaxation there.
+    """
+
+    def __init__(self, settle: Callable[[GenerationResult], str | None], excess: int,
+                 packing: Packing, boundaries, run: _Run, target_pressure: float,
+                 start_pressure: float, wall: float) -> None:
+        self.settle, self.excess = settle, excess
+        self.packing, self.boundaries, self.run = packing, boundaries, run
+        self.target_pressure, self.start_pressure, self.wall = (target_pressure,
+                                                                start_pressure, wall)
+        self.previous: np.ndarray | None = None
+        self.asked: set[bytes] = set()
+        self.reason: str | None = None
+
+    def after_rung(self, system: _SoftSpheres) -> str | None:
+        """`settle`'s answer at the end of the rung just finished (None without asking
+        when its network is not one to ask about)."""
+        self.previous = None
+        network, stable = system.stable_network()
+        if not self._new_and_near(system, network, stable):
+            return None
+        return self._ask(system, self.run.rung, self.run.pressure, False)
+
+    def at_pause(self, system: _SoftSpheres) -> str | None:
+        """`settle`'s answer at a pause whose network has not changed since the last one
+        (None without asking otherwise). The network is read from the minimisation's
+        neighbour lists, without a rebuild."""
+        network, stable = system.stable_network(rebuild=False)
+        same = self.previous is not None and np.array_equal(network, self.previous)
+        self.previous = network
+        if not same or not self._new_and_near(system, network, stable):
+            return None
+        self.reason = self._ask(system, self.run.rung + 1,
+                                float(self.run.ladder[self.run.rung]), True)
+        return self.reason
+
+    def _new_and_near(self, system: _SoftSpheres, network: np.ndarray, stable: int) -> bool:
+        """`network` (of `stable` particles) was not asked about yet, and lies within
+        `excess` contacts of isostatic, not below; it counts as asked from now on."""
+        key = network.tobytes()
+        if key in self.asked or not 0 <= len(network) - system.isostatic_count(stable) \
+                <= self.excess:
+            return False
+        self.asked.add(key)
+        return True
+
+    def _ask(self, system: _SoftSpheres, rung: int, pressure: float,
+             paused: bool) -> str | None:
+        diameters = self.packing.diameters
+        shrunk = _shrunk_result(system, diameters, float(diameters.mean()), self.boundaries,
+                                self.run.rows, pressure, self.target_pressure,
+                                f"relaxed at pressure {pressure:.3g}, rung {rung} of "
+                                f"{len(self.run.ladder)}", self.wall, False, self.packing.box)
+        shrunk.extra.update(rungs=self.run.ladder.copy(), rung=rung, paused=paused,
+                            halted=False, settled=None)
+        return self.settle(_aligned(shrunk, self.packing, self.start_pressure))
 
 
 class _Bound:

@@ -389,10 +389,14 @@ class _SoftSpheres(Resumable):
             _fire.DT_MIN_FRACTION * self.dt0, tolerance, self.force_floor, pressure,
             max_steps, self.periodic, self.circle)
 
-    def pairs_below(self, gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def pairs_below(self, gap: float,
+                    rebuild: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs with relative gap |r|/σ − 1 below `gap`, in original particle indices,
-        i < j, sorted lexicographically, with their gaps."""
-        self.rebuild()
+        i < j, sorted lexicographically, with their gaps. ``rebuild=False`` reads the
+        current neighbour lists (valid at a pause of a minimisation, and only for gaps
+        within the skin) and leaves the list rebuilds of the minimisation as they are."""
+        if rebuild:
+            self.rebuild()
         i, j, gaps = _fire.contact_pairs(self.x, self.s, self.scale, self.box, *self.lists[:2],
                                          gap, self.periodic)
         i, j = self.ids[i], self.ids[j]
@@ -411,9 +415,10 @@ class _SoftSpheres(Resumable):
         order = np.lexsort((wall, particle))
         return particle[order], wall[order], gaps[order]
 
-    def overlap_network(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def overlap_network(self, rebuild: bool = True
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs overlapping by more than `TOUCH` (`pairs_below`)."""
-        return self.pairs_below(-TOUCH)
+        return self.pairs_below(-TOUCH, rebuild)
 
     def wall_overlaps(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Particle–wall pairs overlapping by more than `TOUCH` (`walls_below`)."""
@@ -426,12 +431,13 @@ class _SoftSpheres(Resumable):
         return (self.x.shape[1] * stable + 1 - int(np.count_nonzero(self.periodic))
                 - (1 if self.cylinder else 0))
 
-    def stable_network(self) -> tuple[np.ndarray, int]:
+    def stable_network(self, rebuild: bool = True) -> tuple[np.ndarray, int]:
         """The overlap network without rattlers (recursively; a wall contact counts for its
         particle), shape (M + K, 2), sorted, and the number of particles it holds. Its M
-        pairs come first, then its K wall contacts as (particle, N + wall)."""
+        pairs come first, then its K wall contacts as (particle, N + wall). ``rebuild``:
+        as in `pairs_below`."""
         n = self.x.shape[0]
-        i, j, _ = self.overlap_network()
+        i, j, _ = self.overlap_network(rebuild)
         particle, wall, _ = self.wall_overlaps()
         rattlers, kept = remove_rattlers(n, self.x.shape[1], i, j, particle)
         on_wall = ~rattlers[particle]

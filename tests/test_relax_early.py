@@ -16,6 +16,7 @@ import calippso
 import calippso.routes
 import generators
 from generators import diameters as dist
+from generators.relax import SETTLE_EXCESS
 
 from conftest import assert_jammed
 
@@ -32,18 +33,24 @@ def spheres(computed_once) -> calippso.Packing:
         dist.monodisperse(256), 3, target_pressure=LS_PRESSURE, seed=1).packing)
 
 
-def test_relax_asks_after_every_rung_but_the_last(spheres):
+def test_relax_asks_after_every_rung_but_the_last_about_near_networks(spheres):
     asked = []
 
     def settle(reached):
-        asked.append(reached.extra["rung"])
+        asked.append((reached.extra["rung"], reached.extra["paused"],
+                      reached.extra["isostaticity_gap"]))
         assert reached.packing.n == spheres.n and reached.contacts.shape[1] == 2
         return None
 
-    relaxed = generators.relax(spheres, settle=settle)
-    assert asked == list(range(1, RUNGS))
+    relaxed = generators.relax(spheres, settle=settle, settle_excess=10_000)
+    assert [rung for rung, paused, _ in asked if not paused] == list(range(1, RUNGS))
     assert relaxed.extra["settled"] is None and relaxed.extra["rung"] == RUNGS
     assert relaxed.status.startswith("converged")
+    # by default only networks within SETTLE_EXCESS contacts of isostatic, not hypostatic
+    near = [excess for _, _, excess in asked if 0 <= excess <= SETTLE_EXCESS]
+    asked.clear()
+    generators.relax(spheres, settle=settle)
+    assert [excess for _, _, excess in asked] == near and near
 
 
 def test_relax_ends_at_the_rung_it_is_told_and_returns_that_state(spheres):
@@ -70,14 +77,15 @@ def test_the_relaxed_route_ends_at_the_first_rung_network_first_certifies(sphere
     result = calippso.jam(spheres, route="relaxed")
     assert_jammed(result)
     assert result.route == "relaxed" and result.iterations == 0
-    assert f"2 of {RUNGS} rungs of its ladder" in " ".join(result.notes)
-    assert "rung 2 certified" in " ".join(result.notes)
-    assert f"rung 2 of {RUNGS} of the ladder, where network first certified" in result.status
+    notes = " ".join(result.notes)
+    assert f"ended in rung 2 of {RUNGS} of its ladder" in notes
+    assert "overlap network at the end of rung 2 certified" in notes
+    assert f"in rung 2 of {RUNGS} of the ladder, where network first certified" in result.status
 
 
 def test_without_the_early_end_the_whole_ladder_runs(spheres, monkeypatch):
     monkeypatch.setattr(calippso.routes, "EARLY_MAX_EXCESS", None)
     result = calippso.jam(spheres, route="relaxed")
     assert_jammed(result)
-    assert f"{RUNGS} of {RUNGS} rungs of its ladder" in " ".join(result.notes)
+    assert f"ended in rung {RUNGS} of {RUNGS} of its ladder" in " ".join(result.notes)
     assert "network first tried" not in " ".join(result.notes)
