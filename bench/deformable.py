@@ -9,11 +9,14 @@ best of `--repeat` calls. Run from the repository root:
     python bench/deformable.py --cases 3:1024 --seeds 1 2 3 --json deformable.json
     python bench/deformable.py --cases 2:1024 3:1024 --seeds 1 2 3 --cache DIR
 
-`--cache DIR` keeps the LS inputs (`ls_d{d}_n{N}_p{pressure}_seed{seed}.npz`).
+`--cache DIR` keeps the LS inputs (`ls_d{d}_n{N}_p{pressure}_seed{seed}.npz`);
+`--set KEY=VALUE` passes an option of `jam` to the deformable run only (e.g. `newton=False`
+for the LP loop without the strict Newton stage).
 
 Columns: d, N, seed; φ of the fixed-box and of the deformable run, their difference;
 the deformable run's LPs, isostaticity gap (strict count), stress anisotropy, force balance,
-whether it converged, its category (`JammingResult.category`, "strict" when certified) and
+whether it converged, which stage ended it ("newton": the strict Newton stage, "lp": the
+LPs' tolerances), its category (`JammingResult.category`, "strict" when certified) and
 the fixed-box result's (`calippso.jamming_category`, not timed); the seconds of each run and
 their ratio; then, for each run, where its LP time goes: the LPs solved cold (interior
 point), their seconds, the seconds of the warm ones (simplex from the last basis), and the
@@ -23,6 +26,7 @@ mean rows per LP.
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import time
 from pathlib import Path
@@ -74,16 +78,19 @@ def lp_profile(result) -> dict:
             "rows": float(history["rows"][lp].mean()) if lp.any() else 0.0}
 
 
-def row(n: int, d: int, seed: int, pressure: float, repeat: int, cache: str | None) -> dict:
-    """Both runs of one case (see the module docstring for the columns)."""
+def row(n: int, d: int, seed: int, pressure: float, repeat: int, cache: str | None,
+        options: dict) -> dict:
+    """Both runs of one case (see the module docstring for the columns); `options` go to the
+    deformable run."""
     packing = start(n, d, seed, pressure, cache)
     fixed, fixed_s = timed(packing, repeat)
-    deformable, deformable_s = timed(packing, repeat, box="deformable")
+    deformable, deformable_s = timed(packing, repeat, box="deformable", **options)
     return {"d": d, "n": n, "seed": seed, "pressure": pressure, "phi_fixed": fixed.phi,
             "phi_deformable": deformable.phi, "phi_gain": deformable.phi - fixed.phi,
             "lps_fixed": fixed.iterations, "lps_deformable": deformable.iterations,
             "gap": deformable.isostaticity_gap, "anisotropy": deformable.stress_anisotropy,
             "balance": deformable.force_balance, "converged": deformable.converged,
+            "ended_by": str(deformable.history["stage"][-1]),
             "category": deformable.category or "",
             "category_fixed": calippso.jamming_category(fixed).category,
             "fixed_s": fixed_s, "deformable_s": deformable_s,
@@ -100,9 +107,14 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=1, help="calls timed per run")
     parser.add_argument("--json", help="write the rows to this file")
     parser.add_argument("--cache", help="folder of the LS inputs (read, or made and kept)")
+    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                        help="options of the deformable run (Python literals)")
     args = parser.parse_args()
+    options = {key: ast.literal_eval(value)
+               for key, value in (item.split("=", 1) for item in args.set)}
     print(f"{'d':>2} {'N':>5} {'seed':>4} {'phi fixed':>9} {'phi def.':>9} {'gain':>8} "
           f"{'LPs f':>5} {'LPs d':>5} {'gap':>4} {'aniso':>7} {'balance':>7} {'conv':>5} "
+          f"{'ended':>6} "
           f"{'category':>10} {'fixed cat.':>10} {'fixed s':>8} {'def. s':>8} {'ratio':>6} "
           f"{'cold f':>6} {'cold d':>6} {'cold s f':>8} {'cold s d':>8} {'warm s f':>8} "
           f"{'warm s d':>8} {'rows f':>7} {'rows d':>7}")
@@ -110,12 +122,12 @@ def main() -> None:
     for case in args.cases:
         d, n = (int(part) for part in case.split(":"))
         for seed in args.seeds:
-            r = row(n, d, seed, args.pressure, args.repeat, args.cache)
+            r = row(n, d, seed, args.pressure, args.repeat, args.cache, options)
             rows.append(r)
             print(f"{d:>2} {n:>5} {seed:>4} {r['phi_fixed']:>9.6f} {r['phi_deformable']:>9.6f} "
                   f"{r['phi_gain']:>8.1e} {r['lps_fixed']:>5} {r['lps_deformable']:>5} "
                   f"{r['gap']:>4} {r['anisotropy']:>7.0e} {r['balance']:>7.0e} "
-                  f"{str(r['converged']):>5} {r['category']:>10} {r['category_fixed']:>10} "
+                  f"{str(r['converged']):>5} {r['ended_by']:>6} {r['category']:>10} {r['category_fixed']:>10} "
                   f"{r['fixed_s']:>8.2f} {r['deformable_s']:>8.2f} {r['ratio']:>6.2f} "
                   f"{r['cold_lps_fixed']:>6} {r['cold_lps_deformable']:>6} "
                   f"{r['cold_s_fixed']:>8.1f} {r['cold_s_deformable']:>8.1f} "

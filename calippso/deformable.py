@@ -22,14 +22,18 @@ At the optimum, the strain columns say that the contact stress Σ μ_ij r_ij r_i
 p I, with p the multiplier of t ≤ 0: the stress is isotropic and the pressure is the
 volume's multiplier (`JammingResult.stress`, docs/theory.md).
 
-What the fixed-box loop does and this one does not: the network-first and Newton stages,
-the contact pivots, the force clean-up LP, checkpoints and walls. It is the LP
-loop alone, with a warm-started HiGHS (or another backend) at every LP; the notes say so.
+Once an LP's step is small (largest displacement below `JamSettings.newton_start`) and its
+contact network has the strict count, N_c = d (N_s − 1) + d(d+1)/2, the strict Newton stage
+(`calippso.strict_newton`) solves that network's contact equations in the positions, the
+strain and Γ, and stops the loop where it certifies the point (``newton=False`` turns it
+off). What the fixed-box loop does and this one does not: the network-first stage, the
+contact pivots, the force clean-up LP, checkpoints and walls; the notes say so.
 """
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -42,9 +46,9 @@ from .errors import JammingError
 from .history import History, StopReason, status_sentence
 from .lp import LinearProgram
 from .neighbors import Pairs
-from .network import GEOMETRIC_CONTACT_GAP, ROUNDOFF_SHRINK_MARGIN
+from .network import GEOMETRIC_CONTACT_GAP, NEWTON_OVERLAP_TOLERANCE, ROUNDOFF_SHRINK_MARGIN
 from .packing import Packing
-from .periodic import lattice_wrap
+from .periodic import lattice_minimum_image, lattice_wrap
 from .rattlers import remove_rattlers
 from .result import JammingResult
 from .settings import JamSettings
@@ -52,14 +56,15 @@ from .sheared_search import half_shortest_vector, sheared_pairs_within
 from .solvers.policy import LPFailed, SolverPolicy, next_warm_start
 from .stages.lp_step import VANISHING_STEP_FRACTION
 from .step import BINDING_REDUCED_COST, at_bound
+from .strict_newton import StrictRefinement, refine_strict, strict_unknowns
 from .walls import EMPTY_WALLS
 
 __all__ = ["jam_deformable", "strain_count", "strict_zero_modes", "strain_matrix",
            "strain_coefficients", "DEFORMABLE_NOTE"]
 
 #: The note every deformable run carries.
-DEFORMABLE_NOTE = ("deformable box: LP loop alone (no network-first, Newton or pivot stage, "
-                   "no force clean-up LP)")
+DEFORMABLE_NOTE = ("deformable box: LP loop and strict Newton stage (no network-first or "
+                   "pivot stage, no force clean-up LP)")
 #: A pair whose selection would reach this fraction of half the shortest box vector makes the
 #: bound halve (the minimum image must stay unique).
 SAFE_REACH = 1.0 - 1e-9
@@ -75,6 +80,10 @@ STRAIN_BOUND = 1.0
 FLOPPY_EIGENVALUE = 1e-12
 #: Up to this many columns the stiffness spectrum is computed densely.
 DENSE_STIFFNESS = 200
+#: Passes that move rattlers out of overlaps after the strict Newton stage, and the gap
+#: (relative to the pair's contact distance) that each pass leaves.
+RATTLER_PASSES = 8
+RATTLER_CLEARANCE = 1e-12
 #: The final search for touching pairs reaches this fraction beyond the largest diameter.
 NEAR_CONTACT = 1e-6
 #: Tolerances, condition limit (none) and iteration cap of the least-squares projection of
@@ -262,7 +271,7 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
     bound = float(np.clip(settings.initial_step if settings.initial_step is not None
                           else max(gap, INITIAL_STEP_FLOOR), settings.min_step,
                           settings.max_step))
-    basis, reason, last = None, StopReason.MAX_ITERS, None
+    basis, reason, last, newton, tried = None, StopReason.MAX_ITERS, None, None, set()
 
     def current(x, sigma, h) -> Packing:
         return Packing.sheared(x * scale, sigma * scale, h * scale)
@@ -318,6 +327,15 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
                                                                  matrix)}):
             reason = StopReason.STOPPED_BY_CALLBACK
             break
+        if settings.newton and taken["max_move"] < settings.newton_start:
+            newton = _strict_newton(positions, diameters, matrix, lp.pairs, taken, tried)
+            if newton is not None:
+                positions, diameters, matrix = (newton.refinement.positions,
+                                                newton.refinement.diameters,
+                                                newton.refinement.matrix)
+                _record_newton(history, newton, current(positions, diameters, matrix).phi)
+                reason = StopReason.CONVERGED
+                break
         if (record.sqrt_gamma_minus_1 < settings.tol_gamma
                 and taken["max_move"] < settings.tol_s
                 and taken["max_move"] < 0.5 * lp.step_bound and not taken["held"]):
@@ -334,7 +352,7 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
     if last is None:
         raise fail(f"no LP was solved (max_iters = {settings.max_iters})")
     return _result(positions, diameters, matrix, scale, last, reason, history, start,
-                   phi_input, settings)
+                   phi_input, settings, newton)
 
 
 def _analyse(lp: LinearProgram, solution, settings: JamSettings) -> dict:
@@ -389,27 +407,131 @@ def _next_bound(step: float, taken: dict, settings: JamSettings) -> float:
     return float(np.clip(proposed, settings.min_step, settings.max_step))
 
 
+@dataclass(frozen=True, eq=False)
+class _NewtonPoint:
+    """A network of an LP solved by `calippso.strict_newton.refine_strict` and certified."""
+
+    refinement: StrictRefinement
+    i: np.ndarray
+    j: np.ndarray
+    rattlers: np.ndarray
+    seconds: float
+
+
+def _strict_newton(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
+                   pairs: Pairs, taken: dict, tried: set) -> _NewtonPoint | None:
+    """The strictly jammed point of the LP's network (`calippso.strict_newton`), when it has
+    the strict count, was not refused before, and its Newton solution is certified: positive
+    forces and no other pair overlapping beyond `NEWTON_OVERLAP_TOLERANCE` (rattlers, moved
+    with the box's strain, included). None otherwise. A network refused for its own sake (no
+    solution, a non-positive force, stable particles overlapping) joins `tried`; one refused
+    for a rattler that its cage overlaps is tried again after the next LP, which moves the
+    rattler."""
+    began = time.perf_counter()
+    rows, rattlers = taken["rows"], taken["rattlers"]
+    n_stable = int(rattlers.size - rattlers.sum())
+    if rows.shape[0] != strict_unknowns(n_stable, positions.shape[1]):
+        return None
+    i, j = pairs.i[rows], pairs.j[rows]
+    keys = np.sort(np.minimum(i, j) * positions.shape[0] + np.maximum(i, j))
+    key = keys.tobytes()
+    if key in tried:
+        return None
+    vectors = lattice_minimum_image(positions[i] - positions[j], matrix)
+    refined = refine_strict(positions, diameters, matrix, i, j, vectors, ~rattlers)
+    if refined is None or not refined.positive:
+        tried.add(key)
+        return None
+    moved, stable_overlap = _clear_rattlers(refined.positions, refined.diameters,
+                                            refined.matrix, keys, rattlers)
+    if moved is None:
+        if stable_overlap:
+            tried.add(key)
+        return None
+    return _NewtonPoint(replace(refined, positions=moved), i, j, rattlers,
+                        time.perf_counter() - began)
+
+
+def _clear_rattlers(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
+                    keys: np.ndarray, rattlers: np.ndarray) -> tuple[np.ndarray | None, bool]:
+    """The positions with every rattler that a pair overlaps beyond
+    `NEWTON_OVERLAP_TOLERANCE` moved out of it along the pair's normal (a rattler that
+    touched its cage after the last LP is overlapped by the cage's small move); None when a
+    rattler is still overlapped after `RATTLER_PASSES` passes, or when two stable particles
+    that are no contact overlap (then the flag is True). `keys` are the contacts' keys
+    min(i, j) N + max(i, j)."""
+    n = positions.shape[0]
+    cutoff = float(diameters.max()) * (1.0 + NEAR_CONTACT)
+    for _ in range(RATTLER_PASSES + 1):
+        close = sheared_pairs_within(positions, diameters, matrix, cutoff)
+        outside = ~np.isin(np.minimum(close.i, close.j) * n + np.maximum(close.i, close.j),
+                           keys)
+        overlapping = outside & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
+        if not overlapping.any():
+            return positions, False
+        i, j = close.i[overlapping], close.j[overlapping]
+        if not np.all(rattlers[i] | rattlers[j]):
+            return None, True
+        # move each rattler of the pair out to a gap of RATTLER_CLEARANCE (halves for two)
+        depth = (close.sigma * (1.0 + RATTLER_CLEARANCE) - close.distances)[overlapping]
+        normals = close.vectors[overlapping] / close.distances[overlapping, None]
+        share = 1.0 / (rattlers[i].astype(float) + rattlers[j].astype(float))
+        move = np.zeros_like(positions)
+        np.add.at(move, i[rattlers[i]], (share * depth)[rattlers[i], None]
+                  * normals[rattlers[i]])
+        np.add.at(move, j[rattlers[j]], -(share * depth)[rattlers[j], None]
+                  * normals[rattlers[j]])
+        positions = lattice_wrap(positions + move, matrix)
+    return None, False
+
+
+def _record_newton(history: History, newton: _NewtonPoint, phi: float) -> None:
+    """The history record and the note of a certified strict Newton point."""
+    solution = newton.refinement
+    n_stable = int(newton.rattlers.size - newton.rattlers.sum())
+    history.add_newton(seconds=newton.seconds, sqrt_gamma_minus_1=solution.sqrt_gamma_minus_1,
+                       max_displacement=solution.max_displacement,
+                       n_contacts=newton.i.shape[0], n_stable=n_stable,
+                       force_balance=float("nan"), min_gap=float("nan"), phi=phi)
+    history.note(f"strict contact equations (positions, strain, growth) solved by Newton "
+                 f"({solution.iterations} iterations, {solution.factorizations} "
+                 f"factorisation(s), residual {solution.residual:.0e}) after "
+                 f"{history.lps_solved} LPs")
+
+
 def _result(positions, diameters, matrix, scale, last, reason, history, start, phi_input,
-            settings) -> JammingResult:
+            settings, newton: _NewtonPoint | None = None) -> JammingResult:
     """The result: the final packing (shrunk by round-off overlaps, if any), its contact
-    network and forces (`_final_network`), the stress tensor, the strain certificate in the
-    notes."""
+    network and forces (those of the strict Newton point, else `_final_network`), the
+    stress tensor, the strain certificate in the notes."""
     lp, solution, taken = last
     gap = _smallest_gap(positions, diameters, matrix)
     if gap < 0:
         diameters = diameters * (1.0 + gap) * (1.0 - ROUNDOFF_SHRINK_MARGIN)
         history.note(f"diameters scaled by 1 - {-gap:.1e} to remove round-off overlaps")
     packing = Packing.sheared(positions * scale, diameters * scale, matrix * scale)
-    pairs, rows = lp.pairs, taken["rows"]
-    i, j, forces, rattlers, balance = _final_network(packing, pairs.i[rows], pairs.j[rows],
-                                                     taken["forces"], history)
+    certified = False
+    if newton is not None:
+        i, j, rattlers = newton.i, newton.j, newton.rattlers
+        forces = newton.refinement.forces / newton.refinement.forces.mean()
+        balance = _balance_of(packing, i, j, forces, rattlers)
+        certified = balance <= settings.balance_tolerance
+    if not certified:
+        pairs, rows = lp.pairs, taken["rows"]
+        i, j, forces, rattlers, balance = _final_network(packing, pairs.i[rows],
+                                                         pairs.j[rows], taken["forces"],
+                                                         history)
     vectors = packing.minimum_image(packing.positions[i] - packing.positions[j])
     stress = _stress(vectors, forces, packing.volume)
     n_stable = int(rattlers.size - rattlers.sum())
     gap_count = isostaticity_gap(i.shape[0], n_stable, lp.d, strict_zero_modes(lp.d))
     history.note(_certificate_note(lp, solution, stress))
     category = None
-    if reason == StopReason.CONVERGED:
+    if certified:
+        category = "strict"
+        history.note("strictly jammed: positive forces in balance with an isotropic stress, "
+                     "and a non-singular Jacobian of the strict contact equations")
+    elif reason == StopReason.CONVERGED:
         if n_stable == 0 or gap_count < 0 or balance > settings.balance_tolerance:
             reason = StopReason.NOT_RIGID
         else:

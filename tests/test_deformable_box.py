@@ -253,3 +253,51 @@ def test_cli_box_deformable_writes_the_box_and_the_stress(tmp_path):
     assert record["box"] == "deformable" and record["converged"]
     assert record["stress_anisotropy"] <= ISOTROPY_TOLERANCE
     assert np.allclose(record["box_matrix"], read(tmp_path / "out.npz").lattice)
+
+
+# ------------------------------------------------------------------ the strict Newton stage
+
+@pytest.fixture(scope="module")
+def binary_spheres():
+    """An LS packing of 96 spheres of two sizes (d = 3) and its deformable run by LPs alone."""
+    import generators
+
+    start = generators.lubachevsky_stillinger(generators.diameters.bidisperse(96), d=3,
+                                              target_pressure=1e5, seed=1).packing
+    return start, jam(start, box="deformable", newton=False)
+
+
+def test_strict_newton_finds_the_jammed_point_of_a_perturbed_strict_network(binary_spheres):
+    from calippso.strict_newton import refine_strict
+
+    jammed = binary_spheres[1]
+    assert_strictly_jammed(jammed)
+    assert jammed.isostaticity_gap == 0
+    packing, (i, j) = jammed.packing, jammed.contacts.T
+    rng = np.random.default_rng(0)
+    shear = 1e-6 * rng.standard_normal((3, 3))
+    deformation = np.eye(3) + 0.5 * (shear + shear.T)
+    positions = packing.positions @ deformation.T + 1e-6 * rng.standard_normal((packing.n, 3))
+    matrix = deformation @ packing.lattice
+    vectors = Packing.sheared(positions, packing.diameters, matrix).minimum_image(
+        positions[i] - positions[j])
+    refined = refine_strict(positions, packing.diameters, matrix, i, j, vectors,
+                            ~jammed.rattlers)
+    assert refined is not None and refined.positive
+    back = Packing.sheared(refined.positions, refined.diameters, refined.matrix)
+    assert back.phi == pytest.approx(jammed.phi, abs=1e-9)
+    assert np.allclose(refined.forces / refined.forces.mean(), jammed.forces, atol=1e-6)
+    assert refine_strict(positions, packing.diameters, matrix, i[1:], j[1:], vectors[1:],
+                         ~jammed.rattlers) is None      # one contact short: not square
+
+
+def test_a_strict_network_read_from_an_lp_is_solved_by_newton_and_certified(binary_spheres):
+    start, lps_only = binary_spheres
+    result = jam(start, box="deformable")
+    assert_strictly_jammed(result)
+    assert result.isostatic and result.isostaticity_gap == 0
+    assert result.history["stage"][-1] == "newton"
+    assert result.iterations < lps_only.iterations
+    assert result.phi == pytest.approx(lps_only.phi, abs=1e-9)
+    assert result.phi > jam(start).phi
+    assert jamming_category(result).category == "strict"

@@ -1,0 +1,263 @@
+"""The strictly jammed point of a contact network, by Newton's method in a deformable box.
+
+The deformable box's LP (`calippso.deformable`) reads a contact network from its duals. When
+that network has the strict count, N_c = d (N_s − 1) + d(d+1)/2 (docs/theory.md, A deformable
+box in the LP), its jamming point solves the square system
+
+    |F r_c + u_i − u_j|² / σ_c² = Γ      for every contact c = (i, j),
+
+in the displacements u of the stable particles (one pinned), the d(d+1)/2 − 1 entries of a
+symmetric, traceless strain ε of the box (F = I + ε; the trace is held at zero, which fixes
+the scale that the equations leave free: F → c F, Γ → c² Γ is a solution too) and the
+common inflation Γ of the squared diameters. Every Newton correction is applied to the
+configuration (centres x → F x + u, box vectors H → F H), and the next one is linearised
+there, so that the Jacobian always has the LP's own rows: 2 r/σ² on u_i, −2 r/σ² on u_j,
+2 rᵀ ε r/σ² on the strain, −1 on Γ.
+
+The answer is certified as the fixed box's Newton stage certifies it (`calippso.newton`):
+the self-stress y solving Jᵀ y = (0, …, 0, −1) gives the LP's multipliers at the new point.
+Its rows on u say that the forces balance on every stable particle, its rows on the strain
+that their stress is isotropic, and y > 0 on every contact makes them dual feasible: with
+no other pair overlapping, the deformable LP there has the optimum u = 0, ε = 0, Γ = 1. A
+non-singular Jacobian leaves no floppy mode of the strict rows, so the packing is strictly
+jammed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .newton import (CHORD_CONTRACTION, MAX_CORRECTION, MAX_ITERATIONS, MAX_REFINEMENTS,
+                     MIN_FORCE_RATIO, REFINEMENT_TOLERANCE, RESIDUAL_TOLERANCE,
+                     ROUNDOFF_RESIDUAL, STEP_TOLERANCE)
+from .periodic import lattice_wrap
+from .sparse_lu import factorize
+
+__all__ = ["StrictRefinement", "refine_strict", "strict_unknowns"]
+
+
+@dataclass(frozen=True, eq=False)
+class StrictRefinement:
+    """The strictly jammed point of a network (`refine_strict`).
+
+    Attributes
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres wrapped into the new box (rattlers moved with the strain only).
+    matrix : ndarray, shape (d, d)
+        The new box vectors as columns, F H.
+    diameters : ndarray, shape (N,)
+        Diameters times √Γ.
+    forces : ndarray, shape (M,)
+        Contact forces in the order of the contacts given, in the LP's normalisation
+        (f = μ/2 with Σ μ_c σ_c²/(2|r_c|) = 1).
+    iterations : int
+        Corrections applied.
+    factorizations : int
+        Sparse LU factorisations of the Jacobian.
+    sqrt_gamma_minus_1 : float
+        √Γ − 1: the diameter growth from the start.
+    max_displacement : float
+        Largest displacement of a stable particle from the start, strain included (length
+        units of the input).
+    residual : float
+        max_c | |r_c|²/σ_c² − Γ | at the end.
+    """
+
+    positions: np.ndarray
+    matrix: np.ndarray
+    diameters: np.ndarray
+    forces: np.ndarray
+    iterations: int
+    factorizations: int
+    sqrt_gamma_minus_1: float
+    max_displacement: float
+    residual: float
+
+    @property
+    def positive(self) -> bool:
+        """Every force is positive, above `calippso.newton.MIN_FORCE_RATIO` × the largest."""
+        return bool(self.forces.size == 0
+                    or self.forces.min() > MIN_FORCE_RATIO * self.forces.max())
+
+
+def strict_unknowns(n_stable: int, d: int) -> int:
+    """Unknowns of the strict contact equations: d (N_s − 1) displacements, the
+    d(d+1)/2 − 1 entries of a traceless symmetric strain, and Γ."""
+    return d * (n_stable - 1) + d * (d + 1) // 2
+
+
+def _strain_terms(vectors: np.ndarray) -> np.ndarray:
+    """rᵀ ε r for the traceless strain variables (diagonal entries ε_μμ, μ < d, with
+    ε_dd = −Σ ε_μμ, then the off-diagonal entries ε_μν, μ < ν), shape (M, d(d+1)/2 − 1)."""
+    d = vectors.shape[1]
+    squares = vectors**2
+    columns = [squares[:, a] - squares[:, d - 1] for a in range(d - 1)]
+    columns += [2.0 * vectors[:, a] * vectors[:, b] for a in range(d) for b in range(a + 1, d)]
+    return np.stack(columns, axis=1)
+
+
+def _strain_of(variables: np.ndarray, d: int) -> np.ndarray:
+    """The traceless symmetric strain, shape (d, d), from its variables (`_strain_terms`)."""
+    strain = np.zeros((d, d))
+    diagonal = variables[:d - 1]
+    strain[np.arange(d - 1), np.arange(d - 1)] = diagonal
+    strain[d - 1, d - 1] = -diagonal.sum()
+    upper = [(a, b) for a in range(d) for b in range(a + 1, d)]
+    for value, (a, b) in zip(variables[d - 1:], upper):
+        strain[a, b] = strain[b, a] = value
+    return strain
+
+
+def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_cols: np.ndarray,
+              j_cols: np.ndarray, n_moves: int) -> sp.csc_matrix:
+    """Jacobian of |r_c|²/σ_c² − Γ at the current configuration (module docstring), shape
+    (M, n_moves + d(d+1)/2); `i_cols`, `j_cols` (M, d) hold the displacement columns, −1 for
+    the pinned particle."""
+    m, d = vectors.shape
+    gradient = 2.0 * vectors * inverse_sigma2[:, None]
+    strain = 2.0 * _strain_terms(vectors) * inverse_sigma2[:, None]
+    k = strain.shape[1]
+    n_unknowns = n_moves + k + 1
+    rows = [np.repeat(np.arange(m), k), np.arange(m)]
+    cols = [np.tile(n_moves + np.arange(k), m), np.full(m, n_unknowns - 1)]
+    values = [strain.ravel(), np.full(m, -1.0)]
+    for columns, sign in ((i_cols, 1.0), (j_cols, -1.0)):
+        free = columns >= 0
+        rows.append(np.nonzero(free)[0])
+        cols.append(columns[free])
+        values.append(sign * gradient[free])
+    return sp.csc_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(m, n_unknowns))
+
+
+def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
+                  i: np.ndarray, j: np.ndarray, vectors: np.ndarray,
+                  stable: np.ndarray) -> StrictRefinement | None:
+    """Solve the strict contact equations of a network and compute its forces.
+
+    Chord steps: the Jacobian is factorised at the start and reused while the corrections
+    shrink by `calippso.newton.CHORD_CONTRACTION` per step, factorised again otherwise (the
+    fixed box's `calippso.newton.refine_isostatic` does the same).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres (any units; the mean diameter is a good one).
+    diameters : ndarray, shape (N,)
+    matrix : ndarray, shape (d, d)
+        Box vectors as columns.
+    i, j : ndarray, shape (M,), int
+        The contacts, between stable particles.
+    vectors : ndarray, shape (M, d)
+        Their separations r_c = x_i − x_j (minimum image) at `positions`.
+    stable : ndarray, shape (N,), bool
+        Non-rattlers; the first one is pinned.
+
+    Returns
+    -------
+    StrictRefinement or None
+        None when the network does not have the strict count, the Jacobian is singular or
+        Newton does not converge. The caller certifies the rest: `StrictRefinement.positive`
+        and no overlap of other pairs.
+    """
+    n, d = positions.shape
+    n_stable = int(np.count_nonzero(stable))
+    m = i.shape[0]
+    if n_stable < 2 or m != strict_unknowns(n_stable, d):
+        return None
+    free = np.repeat(stable[:, None], d, axis=1)
+    free[np.flatnonzero(stable)[0]] = False
+    columns = np.full((n, d), -1, dtype=np.int64)
+    n_moves = int(np.count_nonzero(free))
+    columns[free] = np.arange(n_moves)
+    i_cols, j_cols = columns[i], columns[j]
+    sigma = 0.5 * (diameters[i] + diameters[j])
+    inverse_sigma2 = 1.0 / sigma**2
+    moved, box = positions.copy(), matrix.copy()
+    image_shift = vectors - (positions[i] - positions[j])
+    gamma = float(np.mean(np.einsum("md,md->m", vectors, vectors) * inverse_sigma2))
+
+    def residual_of(current: np.ndarray) -> np.ndarray:
+        return np.einsum("md,md->m", current, current) * inverse_sigma2 - gamma
+
+    def factors_at(current: np.ndarray):
+        jacobian = _jacobian(current, inverse_sigma2, i_cols, j_cols, n_moves)
+        return factorize(jacobian, strict=False), jacobian
+
+    factors, jacobian = factors_at(vectors)
+    if factors is None:
+        return None
+    factorizations, previous = 1, np.inf
+    residual = residual_of(vectors)
+    for iteration in range(1, MAX_ITERATIONS + 1):
+        correction = factors.solve(-residual)
+        displacement = np.zeros((n, d))
+        displacement[free] = correction[:n_moves]
+        deformation = np.eye(d) + _strain_of(correction[n_moves:-1], d)
+        largest = float(np.abs(correction[:-1]).max(initial=0.0))
+        if not (np.all(np.isfinite(correction)) and largest <= MAX_CORRECTION):
+            return None
+        moved = moved @ deformation.T + displacement
+        box = deformation @ box
+        image_shift = image_shift @ deformation.T
+        gamma += float(correction[-1])
+        vectors = moved[i] - moved[j] + image_shift
+        residual = residual_of(vectors)
+        if largest < STEP_TOLERANCE:
+            break
+        stalled = largest > CHORD_CONTRACTION * previous
+        if stalled and float(np.abs(residual).max()) <= ROUNDOFF_RESIDUAL:
+            break
+        if stalled:
+            factors, jacobian = factors_at(vectors)
+            if factors is None:
+                return None
+            factorizations, largest = factorizations + 1, np.inf
+        previous = largest
+    else:
+        return None
+    worst = float(np.abs(residual).max())
+    if worst > RESIDUAL_TOLERANCE or gamma <= 0:
+        return None
+    stress = _self_stress(factors, _jacobian(vectors, inverse_sigma2, i_cols, j_cols, n_moves))
+    if stress is None:
+        return None
+    distances = np.sqrt(np.einsum("md,md->m", vectors, vectors))
+    forces = distances * stress / (sigma**2 * gamma)
+    # the stable particles' largest move, the box's strain included (rattlers move with it)
+    travel = float(np.abs(moved[stable] - positions[stable]).max(initial=0.0))
+    return StrictRefinement(
+        positions=lattice_wrap(moved, box), matrix=box, diameters=diameters * np.sqrt(gamma),
+        forces=forces, iterations=iteration, factorizations=factorizations,
+        sqrt_gamma_minus_1=float(np.sqrt(gamma) - 1.0), max_displacement=travel,
+        residual=worst)
+
+
+def _self_stress(factors, jacobian: sp.csc_matrix) -> np.ndarray | None:
+    """y with Jᵀ y = (0, …, 0, −1), by iterative refinement with `factors` of a nearby
+    Jacobian until every row's residual is below `calippso.newton.REFINEMENT_TOLERANCE` × that
+    row of |Jᵀ| |y| + |b|; with J's own factors when that takes more than
+    `calippso.newton.MAX_REFINEMENTS` steps. None when J is singular."""
+    target = np.zeros(jacobian.shape[0])
+    target[-1] = -1.0
+    transposed = jacobian.T.tocsr()
+    magnitudes = abs(transposed)
+    for attempt in (factors, None):
+        if attempt is None:
+            attempt = factorize(jacobian, strict=False)
+            if attempt is None:
+                return None
+        stress = attempt.solve(target, trans="T")
+        for _ in range(MAX_REFINEMENTS + 1):
+            if not np.all(np.isfinite(stress)):
+                break
+            remainder = target - transposed @ stress
+            scale = magnitudes @ np.abs(stress) + np.abs(target)
+            if np.all(np.abs(remainder) <= REFINEMENT_TOLERANCE * scale):
+                return stress
+            stress = stress + attempt.solve(remainder, trans="T")
+    return None
