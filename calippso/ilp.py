@@ -81,8 +81,8 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         Box side lengths, when `packing` is an array of positions. Or, as a string, what the
         box does: "fixed" (default) keeps it as given; "deformable" puts the box's strain
         in every LP (volume not growing), towards a strictly jammed packing
-        (`calippso.deformable`: the LP loop alone, periodic boxes, rectangular or sheared
-        input; the result holds the final box matrix and the stress tensor).
+        (`calippso.deformable`: LPs and a strict Newton stage, periodic boxes, rectangular
+        or sheared input; the result holds the final box matrix and the stress tensor).
     solver : {"highs", "clarabel", "cvxpy"} or str
         LP backend. "highs" (interior point + crossover) gives vertex solutions whose duals
         identify contacts exactly; the others are interior-point solvers at tight tolerances.
