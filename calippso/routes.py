@@ -64,6 +64,9 @@ SPREAD_FROM_RANK = 0.5
 #: by network first only when it has at most this many contacts beyond the isostatic count
 #: (and is not hypostatic); None: never, the whole ladder runs.
 EARLY_MAX_EXCESS: int | None = None
+#: ... and stops trying after this many networks refused (each refusal costs network first's
+#: rounds and pivots: seconds at N = 1024, more at larger N).
+EARLY_MAX_REFUSALS = 2
 
 
 def check_route(route: str, max_displacement: float | None, network) -> None:
@@ -263,7 +266,9 @@ class _EarlyNetwork:
         `generators.GenerationResult` shrunk to hard contact in or after a rung)."""
         excess = reached.extra["isostaticity_gap"]
         key = np.ascontiguousarray(reached.contacts).tobytes()
-        if not 0 <= excess <= EARLY_MAX_EXCESS or key in self.seen:
+        refused = sum(not ok for _, _, ok in self.tried)
+        if not 0 <= excess <= EARLY_MAX_EXCESS or key in self.seen \
+                or refused >= EARLY_MAX_REFUSALS:
             return None
         self.seen.add(key)
         started = time.perf_counter()

@@ -9,6 +9,8 @@ whose ladder has four rungs (1e-4 down to 5e-7). Every jamming point is certifie
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -89,3 +91,20 @@ def test_without_the_early_end_the_whole_ladder_runs(spheres, monkeypatch):
     assert_jammed(result)
     assert f"ended in rung {RUNGS} of {RUNGS} of its ladder" in " ".join(result.notes)
     assert "network first tried" not in " ".join(result.notes)
+
+
+def test_the_route_stops_trying_networks_after_its_refusals(monkeypatch):
+    monkeypatch.setattr(calippso.routes, "EARLY_MAX_EXCESS", 4)
+    tried = []
+
+    def refusing_loop(packing, network, checkpoint, network_only):
+        tried.append(network.copy())
+        raise calippso.JammingError("no network certified")
+
+    early = calippso.routes._EarlyNetwork(refusing_loop, periodic=True)
+    for other in range(1, 5):
+        reached = SimpleNamespace(packing=None, contacts=np.array([[0, other]]),
+                                  extra={"isostaticity_gap": 1, "rung": 4, "paused": True})
+        assert early(reached) is None
+    assert len(tried) == calippso.routes.EARLY_MAX_REFUSALS and early.certified is None
+    assert early.summary().count("refused") == calippso.routes.EARLY_MAX_REFUSALS
