@@ -82,7 +82,7 @@ FLOPPY_EIGENVALUE = 1e-12
 DENSE_STIFFNESS = 200
 #: Passes that move rattlers out of overlaps after the strict Newton stage, and the gap
 #: (relative to the pair's contact distance) that each pass leaves.
-RATTLER_PASSES = 8
+RATTLER_PASSES = 16
 RATTLER_CLEARANCE = 1e-12
 #: The final search for touching pairs reaches this fraction beyond the largest diameter.
 NEAR_CONTACT = 1e-6
@@ -472,16 +472,19 @@ def _clear_rattlers(positions: np.ndarray, diameters: np.ndarray, matrix: np.nda
         i, j = close.i[overlapping], close.j[overlapping]
         if not np.all(rattlers[i] | rattlers[j]):
             return None, True
-        # move each rattler of the pair out to a gap of RATTLER_CLEARANCE (halves for two)
+        # each overlap pushes its rattler(s) out to a gap of RATTLER_CLEARANCE (halves for
+        # two); a rattler moves by the mean of its pushes (their sum overshoots in a cage
+        # that it fits tightly)
         depth = (close.sigma * (1.0 + RATTLER_CLEARANCE) - close.distances)[overlapping]
         normals = close.vectors[overlapping] / close.distances[overlapping, None]
         share = 1.0 / (rattlers[i].astype(float) + rattlers[j].astype(float))
         move = np.zeros_like(positions)
-        np.add.at(move, i[rattlers[i]], (share * depth)[rattlers[i], None]
-                  * normals[rattlers[i]])
-        np.add.at(move, j[rattlers[j]], -(share * depth)[rattlers[j], None]
-                  * normals[rattlers[j]])
-        positions = lattice_wrap(positions + move, matrix)
+        pushes = np.zeros(positions.shape[0])
+        for ends, sign in ((i, 1.0), (j, -1.0)):
+            mask = rattlers[ends]
+            np.add.at(move, ends[mask], sign * (share * depth)[mask, None] * normals[mask])
+            np.add.at(pushes, ends[mask], 1.0)
+        positions = lattice_wrap(positions + move / np.maximum(pushes, 1.0)[:, None], matrix)
     return None, False
 
 

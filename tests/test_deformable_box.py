@@ -301,3 +301,29 @@ def test_a_strict_network_read_from_an_lp_is_solved_by_newton_and_certified(bina
     assert result.phi == pytest.approx(lps_only.phi, abs=1e-9)
     assert result.phi > jam(start).phi
     assert jamming_category(result).category == "strict"
+
+
+def test_rattlers_overlapped_by_the_newton_move_are_moved_out_and_others_refused():
+    from calippso.deformable import _clear_rattlers
+    from calippso.sheared_search import sheared_pairs_within
+
+    packing = lattices.triangular(4)
+    positions, diameters, matrix = packing.positions.copy(), packing.diameters, packing.lattice
+    touching = sheared_pairs_within(positions, diameters, matrix, 1.0 + 1e-9)
+    rattlers = np.zeros(packing.n, bool)
+    rattlers[0] = True                      # its six pairs are no contacts
+    keep = ~(rattlers[touching.i] | rattlers[touching.j])
+    keys = np.sort(np.minimum(touching.i, touching.j)[keep] * packing.n
+                   + np.maximum(touching.i, touching.j)[keep])
+    pushed = positions.copy()
+    pushed[0] += 3e-11 * touching.vectors[touching.i == 0][0] if np.any(touching.i == 0) \
+        else -3e-11 * touching.vectors[touching.j == 0][0]
+    cleared, stable_overlap = _clear_rattlers(pushed, diameters, matrix, keys, rattlers)
+    assert cleared is not None and not stable_overlap
+    gaps = sheared_pairs_within(cleared, diameters, matrix, 1.0 + 1e-6).gaps
+    assert gaps.min() >= -1e-12
+    moved = packing.minimum_image(cleared - pushed)
+    assert np.abs(moved).max() < 1e-9 and np.abs(moved[1:]).max() < 1e-15
+    squeezed = positions.copy()
+    squeezed[1] += 3e-11 * (positions[2] - positions[1])    # two stable discs, no contact
+    assert _clear_rattlers(squeezed, diameters, matrix, keys[:0], rattlers) == (None, True)
