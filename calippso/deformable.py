@@ -328,7 +328,8 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
             reason = StopReason.STOPPED_BY_CALLBACK
             break
         if settings.newton and taken["max_move"] < settings.newton_start:
-            newton = _strict_newton(positions, diameters, matrix, lp.pairs, taken, tried)
+            newton = _strict_newton(positions, diameters, matrix, lp.pairs, taken, tried,
+                                    settings.overlap_tolerance)
             if newton is not None:
                 positions, diameters, matrix = (newton.refinement.positions,
                                                 newton.refinement.diameters,
@@ -419,11 +420,14 @@ class _NewtonPoint:
 
 
 def _strict_newton(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
-                   pairs: Pairs, taken: dict, tried: set) -> _NewtonPoint | None:
+                   pairs: Pairs, taken: dict, tried: set,
+                   round_off: float) -> _NewtonPoint | None:
     """The strictly jammed point of the LP's network (`calippso.strict_newton`), when it has
     the strict count, was not refused before, and its Newton solution is certified: positive
-    forces and no other pair overlapping beyond `NEWTON_OVERLAP_TOLERANCE` (rattlers, moved
-    with the box's strain, included). None otherwise. A network refused for its own sake (no
+    forces, no pair of stable particles that is no contact overlapping beyond `round_off`
+    (the LPs' own feasibility round-off; the result's diameters are scaled down by it) and
+    no rattler overlapped beyond `NEWTON_OVERLAP_TOLERANCE` (`_clear_rattlers`). None
+    otherwise. A network refused for its own sake (no
     solution, a non-positive force, stable particles overlapping) joins `tried`; one refused
     for a rattler that its cage overlaps is tried again after the next LP, which moves the
     rattler."""
@@ -443,7 +447,7 @@ def _strict_newton(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndar
         tried.add(key)
         return None
     moved, stable_overlap = _clear_rattlers(refined.positions, refined.diameters,
-                                            refined.matrix, keys, rattlers)
+                                            refined.matrix, keys, rattlers, round_off)
     if moved is None:
         if stable_overlap:
             tried.add(key)
@@ -453,25 +457,28 @@ def _strict_newton(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndar
 
 
 def _clear_rattlers(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
-                    keys: np.ndarray, rattlers: np.ndarray) -> tuple[np.ndarray | None, bool]:
+                    keys: np.ndarray, rattlers: np.ndarray,
+                    round_off: float = NEWTON_OVERLAP_TOLERANCE
+                    ) -> tuple[np.ndarray | None, bool]:
     """The positions with every rattler that a pair overlaps beyond
     `NEWTON_OVERLAP_TOLERANCE` moved out of it along the pair's normal (a rattler that
     touched its cage after the last LP is overlapped by the cage's small move); None when a
     rattler is still overlapped after `RATTLER_PASSES` passes, or when two stable particles
-    that are no contact overlap (then the flag is True). `keys` are the contacts' keys
-    min(i, j) N + max(i, j)."""
+    that are no contact overlap beyond `round_off` (then the flag is True). `keys` are the
+    contacts' keys min(i, j) N + max(i, j)."""
     n = positions.shape[0]
     cutoff = float(diameters.max()) * (1.0 + NEAR_CONTACT)
     for _ in range(RATTLER_PASSES + 1):
         close = sheared_pairs_within(positions, diameters, matrix, cutoff)
         outside = ~np.isin(np.minimum(close.i, close.j) * n + np.maximum(close.i, close.j),
                            keys)
-        overlapping = outside & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
+        caged = rattlers[close.i] | rattlers[close.j]
+        if np.any(outside & ~caged & (close.gaps < -round_off)):
+            return None, True
+        overlapping = outside & caged & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
         if not overlapping.any():
             return positions, False
         i, j = close.i[overlapping], close.j[overlapping]
-        if not np.all(rattlers[i] | rattlers[j]):
-            return None, True
         # each overlap pushes its rattler(s) out to a gap of RATTLER_CLEARANCE (halves for
         # two); a rattler moves by the mean of its pushes (their sum overshoots in a cage
         # that it fits tightly)
