@@ -426,8 +426,7 @@ def _strict_newton(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndar
     the strict count, was not refused before, and its Newton solution is certified: positive
     forces, no pair of stable particles that is no contact overlapping beyond `round_off`
     (the LPs' own feasibility round-off; the result's diameters are scaled down by it) and
-    no rattler overlapped beyond `NEWTON_OVERLAP_TOLERANCE` (`_clear_rattlers`). None
-    otherwise. A network refused for its own sake (no
+    no rattler overlapped beyond it (`_clear_rattlers`). None otherwise. A network refused for its own sake (no
     solution, a non-positive force, stable particles overlapping) joins `tried`; one refused
     for a rattler that its cage overlaps is tried again after the next LP, which moves the
     rattler."""
@@ -460,8 +459,8 @@ def _clear_rattlers(positions: np.ndarray, diameters: np.ndarray, matrix: np.nda
                     keys: np.ndarray, rattlers: np.ndarray,
                     round_off: float = NEWTON_OVERLAP_TOLERANCE
                     ) -> tuple[np.ndarray | None, bool]:
-    """The positions with every rattler that a pair overlaps beyond
-    `NEWTON_OVERLAP_TOLERANCE` moved out of it along the pair's normal (a rattler that
+    """The positions with every rattler that a pair overlaps beyond `round_off` moved out
+    of it along the pair's normal (a rattler that
     touched its cage after the last LP is overlapped by the cage's small move); None when a
     rattler is still overlapped after `RATTLER_PASSES` passes, or when two stable particles
     that are no contact overlap beyond `round_off` (then the flag is True). `keys` are the
@@ -475,7 +474,7 @@ def _clear_rattlers(positions: np.ndarray, diameters: np.ndarray, matrix: np.nda
         caged = rattlers[close.i] | rattlers[close.j]
         if np.any(outside & ~caged & (close.gaps < -round_off)):
             return None, True
-        overlapping = outside & caged & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
+        overlapping = outside & caged & (close.gaps < -round_off)
         if not overlapping.any():
             return positions, False
         i, j = close.i[overlapping], close.j[overlapping]
