@@ -537,7 +537,7 @@ def _result(positions, diameters, matrix, scale, last, reason, history, start, p
     history.note(_certificate_note(lp, solution, stress))
     category = None
     if certified:
-        category = "strict"
+        reason, category = StopReason.CERTIFIED_NEWTON, "strict"
         history.note("strictly jammed: positive forces in balance with an isotropic stress, "
                      "and a non-singular Jacobian of the strict contact equations")
     elif reason == StopReason.CONVERGED:

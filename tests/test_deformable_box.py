@@ -116,7 +116,7 @@ def test_fixed_box_jam_refuses_a_sheared_box():
 import lattices  # noqa: E402
 from configurations import ls_packing  # noqa: E402
 
-from calippso import jam, jamming_category  # noqa: E402
+from calippso import StopReason, jam, jamming_category  # noqa: E402
 from calippso.deformable import _floppy_strict_rows, strict_zero_modes  # noqa: E402
 
 #: Round-off tolerances of the checks (relative to the diameters, and to the mean force).
@@ -297,6 +297,8 @@ def test_a_strict_network_read_from_an_lp_is_solved_by_newton_and_certified(bina
     assert_strictly_jammed(result)
     assert result.isostatic and result.isostaticity_gap == 0
     assert result.history["stage"][-1] == "newton"
+    assert result.stop_reason == StopReason.CERTIFIED_NEWTON
+    assert lps_only.stop_reason == StopReason.CONVERGED
     assert result.iterations < lps_only.iterations
     assert result.phi == pytest.approx(lps_only.phi, abs=1e-9)
     assert result.phi > jam(start).phi
