@@ -9,7 +9,7 @@ in ``--cache`` so that both routes and later runs jam the same packing.
 
     python bench/routes.py --make fbls --n 2048 --d 3 --seed 1 --cache /tmp/inputs \\
         --json routes.json
-    python bench/routes.py --input /work/shared/data/mono_N1000_fba1e-3_then_ls1e-2_seed11
+    python bench/routes.py --input ../shared/data/mono_N1000_fba1e-3_then_ls1e-2_seed11
     python bench/routes.py --make ls --n 1024 --d 5 --routes relaxed
 
 A route that has not finished after ``--lp-limit`` seconds is stopped after its current LP
