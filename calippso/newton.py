@@ -40,7 +40,8 @@ from .sparse_lu import Factors, factorize
 from .walls import wall_rows_of
 
 __all__ = ["Refinement", "refine_isostatic", "NEWTON_FAILED", "contact_jacobian",
-           "network_jacobian", "pinned_coordinates"]
+           "network_jacobian", "pinned_coordinates", "contact_equations_jacobian",
+           "free_columns", "self_stress"]
 
 #: Newton stops once the largest correction is below this (mean diameters); quadratic
 #: convergence then leaves an error far below round-off.
@@ -122,12 +123,14 @@ class Refinement:
         return bool(every.min() > MIN_FORCE_RATIO * every.max())
 
 
-def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_cols: np.ndarray,
-              j_cols: np.ndarray, n_unknowns: int) -> sp.csc_matrix:
-    """Jacobian of |r_c|²/σ_c² − Γ: 2 r_c/σ_c² on x_i, −2 r_c/σ_c² on x_j, −1 on Γ.
+def contact_equations_jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray,
+                               i_cols: np.ndarray, j_cols: np.ndarray,
+                               n_unknowns: int) -> sp.csc_matrix:
+    """Jacobian of |r_c|²/σ_c² − Γ: 2 r_c/σ_c² on x_i, −2 r_c/σ_c² on x_j, −1 on Γ (the
+    last of `n_unknowns` columns).
 
     `i_cols`, `j_cols` (shape (M, d)) hold the column of every coordinate of each contact's
-    two particles (`_free_columns`), −1 where it is held fixed (the pinned particle, or the
+    two particles (`free_columns`), −1 where it is held fixed (the pinned particle, or the
     wall of a wall contact).
     """
     m = vectors.shape[0]
@@ -142,7 +145,7 @@ def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_cols: np.ndarra
                          shape=(m, n_unknowns))
 
 
-def _free_columns(stable: np.ndarray, d: int, pinned: np.ndarray | None = None) -> np.ndarray:
+def free_columns(stable: np.ndarray, d: int, pinned: np.ndarray | None = None) -> np.ndarray:
     """The Jacobian column of every coordinate, shape (N, d), numbered in row-major order; −1
     for rattlers and for the `pinned` coordinates (shape (N, d), bool; default: every
     coordinate of the first stable particle)."""
@@ -200,8 +203,8 @@ def network_jacobian(vectors: np.ndarray, sigma: np.ndarray, i: np.ndarray, j: n
     """
     d = vectors.shape[1]
     n_unknowns = d * (int(np.count_nonzero(stable)) - 1) + 1
-    columns = _free_columns(stable, d)
-    return _jacobian(vectors, 1.0 / sigma**2, columns[i], columns[j], n_unknowns).tocsr()
+    columns = free_columns(stable, d)
+    return contact_equations_jacobian(vectors, 1.0 / sigma**2, columns[i], columns[j], n_unknowns).tocsr()
 
 
 def contact_jacobian(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -264,7 +267,7 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     if boundaries is not None and not boundaries.is_periodic:
         periodic, cylinder_axes = boundaries.periodic, boundaries.cylinder_axes
         pinned = pinned_coordinates(positions, box, stable, boundaries)
-    columns = _free_columns(stable, d, pinned)
+    columns = free_columns(stable, d, pinned)
     free = columns >= 0
     n_unknowns = int(np.count_nonzero(free)) + 1
     m = i.shape[0]
@@ -290,7 +293,7 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         return np.einsum("md,md->m", vectors, vectors) * inverse_sigma2 - gamma, vectors
 
     def jacobian(vectors: np.ndarray) -> sp.csc_matrix:
-        return _jacobian(vectors, inverse_sigma2, i_cols, j_cols, n_unknowns)
+        return contact_equations_jacobian(vectors, inverse_sigma2, i_cols, j_cols, n_unknowns)
 
     residual, vectors = residual_and_vectors()
     factorizations, previous, made = 0, np.inf, None
@@ -334,7 +337,7 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     worst = float(np.abs(residual).max())
     if worst > RESIDUAL_TOLERANCE or gamma <= 0:
         return None
-    stress = _self_stress(factors, jacobian(vectors))  # J_xᵀ y = 0 (balance), Σ y = 1
+    stress = self_stress(factors, jacobian(vectors))  # J_xᵀ y = 0 (balance), Σ y = 1
     if stress is None:
         return None
     new_sigma = sigma * np.sqrt(gamma)
@@ -348,7 +351,7 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         residual=worst, factorization=made, wall_forces=forces[m:])
 
 
-def _self_stress(factors: Factors, jacobian: sp.csc_matrix) -> np.ndarray | None:
+def self_stress(factors: Factors, jacobian: sp.csc_matrix) -> np.ndarray | None:
     """The solution y of Jᵀ y = (0, …, 0, −1), from factors of a nearby Jacobian.
 
     Iterative refinement: y ← y + F⁻ᵀ (b − Jᵀ y) with F the given factors, until every
@@ -375,7 +378,7 @@ def _self_stress(factors: Factors, jacobian: sp.csc_matrix) -> np.ndarray | None
 
 def _refined_transposed_solve(factors: Factors, transposed: sp.csr_matrix,
                               target: np.ndarray) -> np.ndarray | None:
-    """y with Jᵀ y = target by iterative refinement with `factors` (`_self_stress`), or None
+    """y with Jᵀ y = target by iterative refinement with `factors` (`self_stress`), or None
     when `MAX_REFINEMENTS` steps do not reach the backward error."""
     magnitudes = abs(transposed)
     stress = factors.solve(target, trans="T")

@@ -30,9 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .newton import (CHORD_CONTRACTION, MAX_CORRECTION, MAX_ITERATIONS, MAX_REFINEMENTS,
-                     MIN_FORCE_RATIO, REFINEMENT_TOLERANCE, RESIDUAL_TOLERANCE,
-                     ROUNDOFF_RESIDUAL, STEP_TOLERANCE)
+from .newton import (CHORD_CONTRACTION, MAX_CORRECTION, MAX_ITERATIONS, MIN_FORCE_RATIO,
+                     RESIDUAL_TOLERANCE, ROUNDOFF_RESIDUAL, STEP_TOLERANCE,
+                     contact_equations_jacobian, free_columns, self_stress)
 from .periodic import lattice_wrap
 from .sparse_lu import factorize
 
@@ -115,23 +115,18 @@ def _strain_of(variables: np.ndarray, d: int) -> np.ndarray:
 def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_cols: np.ndarray,
               j_cols: np.ndarray, n_moves: int) -> sp.csc_matrix:
     """Jacobian of |r_c|²/σ_c² − Γ at the current configuration (module docstring), shape
-    (M, n_moves + d(d+1)/2); `i_cols`, `j_cols` (M, d) hold the displacement columns, −1 for
-    the pinned particle."""
-    m, d = vectors.shape
-    gradient = 2.0 * vectors * inverse_sigma2[:, None]
+    (M, n_moves + d(d+1)/2): the fixed box's columns (`calippso.newton`; `i_cols`, `j_cols`
+    (M, d) hold the displacement columns, −1 for the pinned particle) with the strain's
+    2 rᵀ ε r/σ² between the displacements and Γ."""
+    m = vectors.shape[0]
     strain = 2.0 * _strain_terms(vectors) * inverse_sigma2[:, None]
     k = strain.shape[1]
-    n_unknowns = n_moves + k + 1
-    rows = [np.repeat(np.arange(m), k), np.arange(m)]
-    cols = [np.tile(n_moves + np.arange(k), m), np.full(m, n_unknowns - 1)]
-    values = [strain.ravel(), np.full(m, -1.0)]
-    for columns, sign in ((i_cols, 1.0), (j_cols, -1.0)):
-        free = columns >= 0
-        rows.append(np.nonzero(free)[0])
-        cols.append(columns[free])
-        values.append(sign * gradient[free])
-    return sp.csc_matrix((np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(m, n_unknowns))
+    fixed_box = contact_equations_jacobian(vectors, inverse_sigma2, i_cols, j_cols,
+                                           n_moves + k + 1)
+    strain_block = sp.csc_matrix(
+        (strain.ravel(), (np.repeat(np.arange(m), k), np.tile(n_moves + np.arange(k), m))),
+        shape=fixed_box.shape)
+    return (fixed_box + strain_block).tocsc()
 
 
 def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
@@ -169,11 +164,9 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
     m = i.shape[0]
     if n_stable < 2 or m != strict_unknowns(n_stable, d):
         return None
-    free = np.repeat(stable[:, None], d, axis=1)
-    free[np.flatnonzero(stable)[0]] = False
-    columns = np.full((n, d), -1, dtype=np.int64)
+    columns = free_columns(stable, d)
+    free = columns >= 0
     n_moves = int(np.count_nonzero(free))
-    columns[free] = np.arange(n_moves)
     i_cols, j_cols = columns[i], columns[j]
     sigma = 0.5 * (diameters[i] + diameters[j])
     inverse_sigma2 = 1.0 / sigma**2
@@ -223,7 +216,7 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
     worst = float(np.abs(residual).max())
     if worst > RESIDUAL_TOLERANCE or gamma <= 0:
         return None
-    stress = _self_stress(factors, _jacobian(vectors, inverse_sigma2, i_cols, j_cols, n_moves))
+    stress = self_stress(factors, _jacobian(vectors, inverse_sigma2, i_cols, j_cols, n_moves))
     if stress is None:
         return None
     distances = np.sqrt(np.einsum("md,md->m", vectors, vectors))
@@ -236,28 +229,3 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
         sqrt_gamma_minus_1=float(np.sqrt(gamma) - 1.0), max_displacement=travel,
         residual=worst)
 
-
-def _self_stress(factors, jacobian: sp.csc_matrix) -> np.ndarray | None:
-    """y with Jᵀ y = (0, …, 0, −1), by iterative refinement with `factors` of a nearby
-    Jacobian until every row's residual is below `calippso.newton.REFINEMENT_TOLERANCE` × that
-    row of |Jᵀ| |y| + |b|; with J's own factors when that takes more than
-    `calippso.newton.MAX_REFINEMENTS` steps. None when J is singular."""
-    target = np.zeros(jacobian.shape[0])
-    target[-1] = -1.0
-    transposed = jacobian.T.tocsr()
-    magnitudes = abs(transposed)
-    for attempt in (factors, None):
-        if attempt is None:
-            attempt = factorize(jacobian, strict=False)
-            if attempt is None:
-                return None
-        stress = attempt.solve(target, trans="T")
-        for _ in range(MAX_REFINEMENTS + 1):
-            if not np.all(np.isfinite(stress)):
-                break
-            remainder = target - transposed @ stress
-            scale = magnitudes @ np.abs(stress) + np.abs(target)
-            if np.all(np.abs(remainder) <= REFINEMENT_TOLERANCE * scale):
-                return stress
-            stress = stress + attempt.solve(remainder, trans="T")
-    return None
