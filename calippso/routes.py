@@ -8,10 +8,10 @@ relaxed as soft spheres.
   network-first stage, and to the LPs when that stage refuses it. Inputs compressed at a
   constant rate (LS, FB → LS) keep collective channels along which the LPs slide them for
   tens to hundreds of LPs (docs/notes/wandering-phase.md); the relaxation settles them in a
-  nearby basin instead. Its jamming point is another one than the loop's, nearby. After
-  each rung of the ladder whose overlap network lies within `EARLY_MAX_EXCESS` contacts of
-  isostatic, network first (alone, no LP) tries that network, and the relaxation ends at
-  the first rung it certifies (`settle_early`).
+  nearby basin instead. Its jamming point is another one than the loop's, nearby. With
+  `EARLY_MAX_EXCESS` set (None, off, by default), network first (alone, no LP) tries each
+  settled overlap network of the ladder that lies within that many contacts of isostatic,
+  and the relaxation ends at the first one it certifies (`_EarlyNetwork`).
 * ``route="auto"``: the relaxed route where the LP route is predicted to be slow
   (`lp_route_slow`), the LP route elsewhere.
 
