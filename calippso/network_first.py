@@ -64,7 +64,8 @@ WIDENING = 4.0
 #: the restricted LP at the point they reached (each pivot costs up to a sparse LU).
 ROUND_PIVOTS = 40
 #: Contact pivots the network-first stage takes at most over all its rounds and candidates.
-#: The N = 8192 quenches that it certifies took 0 to 18 (seeds 1-5), at 3-6 s each there,
+#: The N = 8192 quenches that it certifies took 0 to 30 over their rounds (seeds 1, 2, 3, 5:
+#: 12, 30, 8, 0), at 1-6 s each there,
 #: about a tenth of one interior-point LP of the same packing: a network that needs more is
 #: left to the LP loop, which sees all of it at once.
 STAGE_PIVOTS = 32
