@@ -1,22 +1,30 @@
 """The deformable box: CALiPPSO with the box's strain in every LP, towards strict jamming.
 
-`jam(packing, box="deformable")` runs this loop. Each LP has, besides the displacements s_i
-and γ = Γ − 1, a symmetric strain ε of the box (d(d+1)/2 variables); the box vectors become
-(I + ε) H and the centres (I + ε) r_i + s_i. A pair's linearised non-overlap condition is
-that of the fixed box with the pair vector's affine change added,
+`jam(packing, box="deformable")` runs this loop. Each LP has, besides γ = Γ − 1, a
+symmetric strain ε of the box (d(d+1)/2 variables) and the displacements s'_i of the centres,
+their affine part included: the box vectors become (I + ε) H and the centres r_i + s'_i.
+A pair's separation is r_ij = r_i − r_j + m_ij, with m_ij a lattice vector (zero unless the
+pair's minimum image crosses the boundary), and it becomes r_ij + s'_i − s'_j + ε m_ij
+exactly. Its linearised non-overlap condition is that of the fixed box with the strain's
+share added,
 
-    n_ij·(s_i − s_j) + r_ijᵀ ε r_ij / |r_ij| − γ σ_ij²/(2|r_ij|) ≥ −(|r_ij|² − σ_ij²)/(2|r_ij|),
+    n_ij·(s'_i − s'_j) + n_ijᵀ ε m_ij − γ σ_ij²/(2|r_ij|) ≥ −(|r_ij|² − σ_ij²)/(2|r_ij|),
 
 and the box's volume may not grow, tr ε ≤ 0. The LP maximises γ: at a volume that does not
 grow, that is the growth of the packing fraction (Donev, Torquato, Stillinger & Connelly,
-J. Comput. Phys. 197, 139 (2004); Torquato & Jiao, Phys. Rev. E 82, 061302 (2010)).
+J. Comput. Phys. 197, 139 (2004); Torquato & Jiao, Phys. Rev. E 82, 061302 (2010)). This
+is the affine form (centres (I + ε) r_i + s_i) with s'_i = s_i + ε r_i; written so, the strain
+columns hold entries on the rows of the pairs across the boundary only (about a sixth of the
+rows at N = 1024 in d = 3), where the affine form puts them on every row, and an LP costs
+about as much as the fixed box's.
 
 The strain variables are the diagonal differences ε_μμ (μ < d), the off-diagonal entries
 ε_μν (μ < ν) and the trace t = tr ε, with ε_dd = t − Σ_{μ<d} ε_μμ; the volume condition is
 then the column bound t ≤ 0 and the LP keeps one row per pair (so that the basis of one LP
-warm-starts the next, as in the fixed box). Every strain variable is bounded by the step
-bound b times `STRAIN_BOUND`; a pair vector then moves by at most 2√d b + √(2d² − 1) e |r|
-in a step, with e that bound (`_reach`).
+warm-starts the next, as in the fixed box). Each s'_iμ is bounded by the step bound b, every
+strain variable by e = `STRAIN_BOUND` b / W (W the longest box vector), and the centres are
+taken in the cell centred on the pinned particle, so that the affine part fits the bound; a
+pair then moves by at most 2√d b + √(2d² − 1) e |m_ij| in a step (`_select`).
 
 At the optimum, the strain columns say that the contact stress Σ μ_ij r_ij r_ijᵀ/|r_ij| is
 p I, with p the multiplier of t ≤ 0: the stress is isotropic and the pressure is the
@@ -71,9 +79,8 @@ SAFE_REACH = 1.0 - 1e-9
 #: Smallest first bound on displacements (mean diameters), as the fixed box's
 #: `calippso.ilp.INITIAL_STEP_FLOOR`.
 INITIAL_STEP_FLOOR = 1e-3
-#: Bound on every strain variable per unit of the step bound b (dimensionless per mean
-#: diameter): a pair vector of length |r| moves by at most 2 d STRAIN_BOUND b |r| by the
-#: strain in one step.
+#: Bound on every strain variable per unit of b / W, with b the step bound and W the longest
+#: box vector: the strain then moves a centre by a few b at most, relative to the pinned one.
 STRAIN_BOUND = 1.0
 #: The strict rows have a floppy mode when the smallest eigenvalue of AᵀA is below this
 #: times its mean diagonal (as `calippso.categories.FLOPPY_EIGENVALUE`).
@@ -146,27 +153,58 @@ def strain_matrix(variables: np.ndarray, d: int) -> np.ndarray:
     return strain
 
 
-def _build_lp(pairs: Pairs, n: int, d: int, bound: float, pinned: int | None) -> LinearProgram:
-    """The LP of one step: columns s (N d), the strain variables, γ; one row per pair."""
+def _strain_scale(matrix: np.ndarray) -> float:
+    """e / b: the bound on every strain variable per unit of the step bound b,
+    `STRAIN_BOUND` / W with W the longest box vector (mean diameters)."""
+    return STRAIN_BOUND / float(np.linalg.norm(matrix, axis=0).max())
+
+
+def _images(positions: np.ndarray, matrix: np.ndarray, pairs: Pairs) -> np.ndarray:
+    """The lattice vector m of every pair, r_ij = r_i − r_j + m_ij, shape (M, d): zero for a
+    pair whose minimum image does not cross the boundary of the cell of `positions`."""
+    shift = pairs.vectors - (positions[pairs.i] - positions[pairs.j])
+    return np.rint(np.linalg.solve(matrix, shift.T)).T @ matrix.T
+
+
+def _image_strain_coefficients(normals: np.ndarray, images: np.ndarray) -> np.ndarray:
+    """nᵀ ε m as a linear function of the strain variables (module docstring), shape
+    (M, d(d+1)/2), for unit normals n and image vectors m, shape (M, d)."""
+    d = normals.shape[1]
+    products = normals * images
+    columns = [products[:, a] - products[:, d - 1] for a in range(d - 1)]
+    columns += [normals[:, a] * images[:, b] + normals[:, b] * images[:, a]
+                for a, b in _off_diagonal(d)]
+    columns.append(products[:, d - 1])
+    return np.stack(columns, axis=1)
+
+
+def _build_lp(pairs: Pairs, images: np.ndarray, n: int, d: int, bound: float,
+              strain_scale: float, pinned: int | None) -> LinearProgram:
+    """The LP of one step (module docstring): columns s' (N d, affine part included), the
+    strain variables, γ; one row per pair, with the strain on the rows whose image vector
+    (`images`, shape (M, d)) is not zero. Displacements are bounded by `bound`, strain
+    variables by `strain_scale` × `bound`."""
     m, k = len(pairs), strain_count(d)
     normals = pairs.vectors / pairs.distances[:, None]
     coordinate = np.arange(d)
-    strain_columns = n * d + np.arange(k)
-    columns = np.concatenate([pairs.i[:, None] * d + coordinate, pairs.j[:, None] * d + coordinate,
-                              np.broadcast_to(strain_columns, (m, k)),
-                              np.full((m, 1), n * d + k)], axis=1)
-    values = np.concatenate([normals, -normals,
-                             strain_coefficients(pairs.vectors, pairs.distances),
-                             -(pairs.sigma**2 / (2.0 * pairs.distances))[:, None]], axis=1)
-    rows = np.repeat(np.arange(m), 2 * d + k + 1)
-    matrix = sp.csc_matrix((values.ravel(), (rows, columns.ravel())),
-                           shape=(m, n * d + k + 1))
+    across = np.flatnonzero(np.any(images != 0.0, axis=1))
+    strain = _image_strain_coefficients(normals[across], images[across])
+    rows = np.concatenate([np.repeat(np.arange(m), 2 * d + 1), np.repeat(across, k)])
+    columns = np.concatenate([
+        np.concatenate([pairs.i[:, None] * d + coordinate, pairs.j[:, None] * d + coordinate,
+                        np.full((m, 1), n * d + k)], axis=1).ravel(),
+        np.tile(n * d + np.arange(k), across.size)])
+    values = np.concatenate([
+        np.concatenate([normals, -normals,
+                        -(pairs.sigma**2 / (2.0 * pairs.distances))[:, None]], axis=1).ravel(),
+        strain.ravel()])
+    matrix = sp.csc_matrix((values, (rows, columns)), shape=(m, n * d + k + 1))
     row_lower = -(pairs.distances - pairs.sigma) * (pairs.distances + pairs.sigma) / (
         2.0 * pairs.distances)
     col_lower = np.full(n * d + k + 1, -bound)
     col_upper = np.full(n * d + k + 1, bound)
-    col_lower[n * d:n * d + k] *= STRAIN_BOUND
-    col_upper[n * d:n * d + k] *= STRAIN_BOUND
+    col_lower[n * d:n * d + k] *= strain_scale
+    col_upper[n * d:n * d + k] *= strain_scale
     col_upper[n * d + k - 1] = 0.0            # the trace: the volume does not grow
     if pinned is not None:
         col_lower[pinned * d:(pinned + 1) * d] = 0.0
@@ -176,32 +214,32 @@ def _build_lp(pairs: Pairs, n: int, d: int, bound: float, pinned: int | None) ->
                          EMPTY_WALLS, strict_zero_modes(d))
 
 
-def _reach(d: int, bound: float) -> tuple[float, float]:
-    """How far a pair vector can move in one step: 2√d b, plus a fraction of its length that
-    bounds the strain's operator norm by its Frobenius norm, √(2d² − 1) e, with e =
-    `STRAIN_BOUND` b the bound on every strain variable (|ε_dd| ≤ d e through the trace)."""
-    return 2.0 * np.sqrt(d) * bound, np.sqrt(2.0 * d * d - 1.0) * STRAIN_BOUND * bound
-
-
-def _select(positions, diameters, matrix, bound) -> Pairs | None:
-    """Every pair that could come into contact in a step of bound b, or None when that
-    selection would reach beyond half the shortest box vector."""
+def _select(positions, diameters, matrix, bound) -> tuple[Pairs, np.ndarray] | None:
+    """Every pair that could come into contact in a step of bound b, and its image vector
+    (`_images`); None when that selection would reach beyond half the shortest box vector.
+    A pair moves by at most 2√d b + √(2d² − 1) e |m| (e = `_strain_scale` b bounds every
+    strain variable, and √(2d² − 1) e the strain's operator norm, |ε_dd| ≤ d e through the
+    trace); |m| is at most the cell's diameter plus the cutoff."""
     d = positions.shape[1]
-    absolute, relative = _reach(d, bound)
-    if relative >= 0.5:
-        return None
+    absolute = 2.0 * np.sqrt(d) * bound
+    per_image = np.sqrt(2.0 * d * d - 1.0) * _strain_scale(matrix) * bound
     half = half_shortest_vector(matrix)
+    widest = float(np.linalg.norm(matrix, axis=0).sum()) + SAFE_REACH * half
     nearest = sheared_pairs_within(positions, diameters, matrix,
                                    min(SAFE_REACH * half, 1.5 * float(diameters.max())))
     if not len(nearest):
         return None
-    growth = float(np.min((nearest.distances * (1.0 + relative) + absolute) / nearest.sigma))
-    cutoff = (growth * float(diameters.max()) + absolute) / (1.0 - relative)
+    near_images = _images(positions, matrix, nearest)
+    reach = absolute + per_image * np.linalg.norm(near_images, axis=1)
+    growth = float(np.min((nearest.distances + reach) / nearest.sigma))
+    cutoff = growth * float(diameters.max()) + absolute + per_image * widest
     if cutoff >= SAFE_REACH * half:
         return None
     pairs = sheared_pairs_within(positions, diameters, matrix, cutoff)
-    return pairs.subset(pairs.distances * (1.0 - relative) - absolute
-                        <= growth * pairs.sigma)
+    images = _images(positions, matrix, pairs)
+    reach = absolute + per_image * np.linalg.norm(images, axis=1)
+    keep = pairs.distances - reach <= growth * pairs.sigma
+    return pairs.subset(keep), images[keep]
 
 
 def _median_gap(positions, diameters, matrix) -> float:
@@ -282,6 +320,9 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
 
     while history.lps_solved < settings.max_iters:
         step = bound
+        if pinned is not None:   # the cell centred on the pinned particle
+            centre = positions[pinned] - 0.5 * matrix.sum(axis=1)
+            positions = lattice_wrap(positions - centre, matrix) + centre
         while True:
             pairs = _select(positions, diameters, matrix, step)
             if pairs is not None:
@@ -290,10 +331,11 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
             if step < settings.min_step * VANISHING_STEP_FRACTION:
                 raise fail("box too small: even a vanishing step would need pairs beyond half "
                            "the shortest box vector")
+        strain_scale = _strain_scale(matrix)
 
         def build(b: float, selected=pairs, first=step) -> LinearProgram:
             rows = selected if b == first else _select(positions, diameters, matrix, b)
-            return _build_lp(rows, n, d, b, pinned)
+            return _build_lp(*rows, n, d, b, strain_scale, pinned)
 
         try:
             solved = policy.solve(build, step, basis, history.lps_solved + 1)
@@ -302,17 +344,16 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
         if solved.note is not None:
             history.note(solved.note)
         lp, solution = solved.lp, solved.solution
-        taken = _analyse(lp, solution, settings)
+        taken = _analyse(lp, solution, settings, strain_scale)
         strain = strain_matrix(solution.x[n * d:-1], d)
         deformation = np.eye(d) + strain
-        new_positions = positions @ deformation.T + solution.x[:n * d].reshape(n, d)
+        new_positions = positions + solution.x[:n * d].reshape(n, d)
         new_matrix = deformation @ matrix
         new_diameters = diameters * np.sqrt(1.0 + solution.gamma)
         new_positions = lattice_wrap(new_positions, new_matrix)
         min_gap = _smallest_gap(new_positions, new_diameters, new_matrix)
         positions, diameters, matrix = new_positions, new_diameters, new_matrix
-        basis = next_warm_start(solution, solved.warm_start is not None, taken["max_move"],
-                                lp.step_bound)
+        basis = _warm_start(solution, solved.warm_start is not None, taken, lp.step_bound)
         record = history.add_lp(
             stage="lp", solver_time=solution.seconds + policy.take_discarded_seconds(),
             gamma=solution.gamma, max_displacement=taken["max_move"], rows=lp.n_rows,
@@ -356,9 +397,11 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
                    phi_input, settings, newton)
 
 
-def _analyse(lp: LinearProgram, solution, settings: JamSettings) -> dict:
+def _analyse(lp: LinearProgram, solution, settings: JamSettings,
+             strain_scale: float) -> dict:
     """Contacts, rattlers, forces and their balance, the largest move of a stable particle
-    or of the strain, whether the bound held the step back."""
+    or of the strain (a strain variable over `strain_scale`: in units of the step bound),
+    whether the bound held the step back."""
     n, d = lp.n, lp.d
     rows = np.flatnonzero(contact_mask(solution.duals, settings.contact_threshold))
     pairs = lp.pairs
@@ -368,16 +411,16 @@ def _analyse(lp: LinearProgram, solution, settings: JamSettings) -> dict:
     normals = pairs.vectors[rows] / pairs.distances[rows, None]
     balance = force_balance(n, pairs.i[rows], pairs.j[rows], normals, forces, ~rattlers)
     s = solution.x[:n * d].reshape(n, d)
-    strain = np.abs(solution.x[n * d:-1]).max(initial=0.0) / STRAIN_BOUND
+    strain = np.abs(solution.x[n * d:-1]).max(initial=0.0) / strain_scale
     moving = s[~rattlers] if (~rattlers).any() else s
     return {"rows": rows, "rattlers": rattlers, "forces": forces, "balance": balance,
             "max_move": float(max(np.abs(moving).max(initial=0.0), strain)),
             "n_contacts": int(rows.shape[0]),
             "stable_fraction": float(np.count_nonzero(~rattlers)) / n,
-            "held": _held(lp, solution)}
+            "held": _held(lp, solution, strain_scale)}
 
 
-def _held(lp: LinearProgram, solution) -> bool:
+def _held(lp: LinearProgram, solution, strain_scale: float) -> bool:
     """Whether a bound limited γ: a displacement or a strain variable at its bound with a
     reduced cost above `BINDING_REDUCED_COST` × the largest dual (`calippso.step.
     held_by_bound`, with the strain's own bound)."""
@@ -386,7 +429,7 @@ def _held(lp: LinearProgram, solution) -> bool:
     n_moves = lp.n * lp.d
     x = solution.x[:-1]
     limits = np.full(x.shape[0], lp.step_bound)
-    limits[n_moves:] *= STRAIN_BOUND
+    limits[n_moves:] *= strain_scale
     free = lp.col_upper[:-1] > lp.col_lower[:-1]
     pressed = free & at_bound(np.abs(x), limits)
     if not pressed.any():
@@ -394,6 +437,16 @@ def _held(lp: LinearProgram, solution) -> bool:
     reduced = (lp.matrix.T @ solution.duals)[:-1]
     return bool(np.any(np.abs(reduced[pressed]) > BINDING_REDUCED_COST
                        * float(solution.duals.max())))
+
+
+def _warm_start(solution, offered: bool, taken: dict, bound: float):
+    """The basis the next LP starts from (`calippso.solvers.policy.next_warm_start`), or None
+    for a cold start: here only after a warm start that failed or a step that reached its
+    bound (the bound then grows and the next optimum is far). The fixed box's rule, cold
+    after any move of half the bound, would solve one LP in eight cold along the slide of a
+    deformable box, at ten times the cost of a warm start from the last basis."""
+    moved = taken["max_move"] if at_bound(taken["max_move"], bound) else 0.0
+    return next_warm_start(solution, offered, moved, bound)
 
 
 def _next_bound(step: float, taken: dict, settings: JamSettings) -> float:

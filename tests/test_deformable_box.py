@@ -172,6 +172,41 @@ def test_strict_count_is_the_fixed_box_count_plus_the_box_shape():
         assert strict_zero_modes(d) == translations - shape_at_fixed_volume
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_lp_rows_are_the_linearised_distances_with_the_strain_on_boundary_pairs_only(d):
+    """Each row of the deformable LP is n·Δr − γσ²/(2|r|) for the pair's exact change Δr =
+    s'_i − s'_j + ε m (s' the displacements with their affine part, m the pair's lattice
+    vector): the strain enters the rows of the pairs across the boundary, and no other."""
+    from calippso.deformable import _build_lp, _images, strain_count, strain_matrix
+    from calippso.sheared_search import sheared_pairs_within
+
+    rng = np.random.default_rng(d)
+    n = 40
+    packing = Packing.sheared(rng.uniform(0.0, 6.0, size=(n, d)), np.full(n, 0.9),
+                              np.eye(d) * 6.0 + np.triu(np.full((d, d), 2.5), 1))
+    scale = packing.mean_diameter
+    positions, diameters = packing.positions / scale, packing.diameters / scale
+    matrix = packing.lattice / scale
+    pairs = sheared_pairs_within(positions, diameters, matrix, 2.0)
+    images = _images(positions, matrix, pairs)
+    k = strain_count(d)
+    lp = _build_lp(pairs, images, n, d, 0.05, 0.01, pinned=0)
+    moves, strain, gamma = rng.normal(size=(n, d)), rng.normal(size=k), 0.3
+    variables = np.concatenate([moves.ravel(), strain, [gamma]])
+    change = (moves[pairs.i] - moves[pairs.j]) + images @ strain_matrix(strain, d).T
+    normals = pairs.vectors / pairs.distances[:, None]
+    expected = (np.einsum("md,md->m", normals, change)
+                - gamma * pairs.sigma**2 / (2.0 * pairs.distances))
+    assert np.allclose(lp.matrix @ variables, expected, rtol=0.0, atol=1e-12)
+    # the images are lattice vectors, and nonzero exactly where the pair crosses the boundary
+    cells = np.linalg.solve(matrix, images.T)
+    assert np.allclose(cells, np.rint(cells), atol=1e-9)
+    across = np.any(images != 0.0, axis=1)
+    assert 0 < across.sum() < len(pairs)
+    strain_entries = lp.matrix[:, n * d:n * d + k].tocsr()
+    assert np.all(np.diff(strain_entries.indptr)[~across] == 0)
+
+
 @pytest.mark.parametrize("make", [lambda: lattices.triangular(4), lambda: lattices.fcc(2)],
                          ids=["triangular", "fcc"])
 def test_a_strictly_jammed_crystal_is_returned_unchanged(make):
