@@ -16,6 +16,8 @@ pressure --pressure, then `jam`. `--generator quench`: the soft-sphere quench
     python bench/scale.py --generator quench --seed 2 --cases 4:1024 5:1024
     python bench/scale.py --generator quench --quench-pressure 1e-8 --cases 3:16384 \
         --set network_first=require          # fails fast when network first cannot settle
+    python bench/scale.py --generator quench --settle-excess 16 --cases 3:8192  # ends the
+        # quench at the first overlap network that network first certifies
     python bench/scale.py --container walls:x --cases 3:1024      # flat walls at x = 0, L
     python bench/scale.py --container cylinder:x,y --cases 3:1024  # a cylinder along z
 
@@ -52,7 +54,7 @@ CHILD = textwrap.dedent("""
     from calippso.network import walls_near_contact
     d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
     options, generator, quench_pressure = json.loads(sys.argv[5]), sys.argv[6], sys.argv[7]
-    seed, container = int(sys.argv[8]), sys.argv[9]
+    seed, container, settle_excess = int(sys.argv[8]), sys.argv[9], int(sys.argv[10])
     boundaries = calippso.Boundaries.all_periodic(d)
     if container != "periodic":
         kind, axes = container.split(":")
@@ -67,6 +69,7 @@ CHILD = textwrap.dedent("""
         name += "_" + container.replace(":", "_").replace(",", "")
     path = os.path.join(cache, f"{name}_seed{seed}.npz") if cache else ""
     clock = time.perf_counter()
+    settle, tried = None, 0.0
     if path and os.path.exists(path):
         start = calippso.read(path)
         with np.load(path) as stored:
@@ -80,10 +83,19 @@ CHILD = textwrap.dedent("""
             made = generators.lubachevsky_stillinger(sizes, d=d, target_pressure=pressure,
                                                      seed=seed, **walled)
         else:
+            if settle_excess >= 0:
+                walled["settle"] = calippso.NetworkFirstSettle(
+                    lambda packing, hint: calippso.jam(packing, network=hint,
+                                                       network_first="require", **options))
+                walled["settle_excess"] = settle_excess
             made = generators.soft_quench(sizes, d, seed=seed, target_pressure=quench_pressure,
                                           **walled)
         start, network = made.packing, getattr(made, "contacts", None)
         generate = time.perf_counter() - clock
+        settle = walled.get("settle")
+        if settle is not None:
+            tried = sum(seconds for _, seconds, _ in settle.tried)
+            generate -= tried
         if path:
             extra = {} if network is None else {"contacts": network}
             if not boundaries.is_periodic:
@@ -91,13 +103,18 @@ CHILD = textwrap.dedent("""
             np.savez(path, positions=start.positions, diameters=start.diameters,
                      box=start.box, **extra)
     clock = time.perf_counter()
+    settled = "" if settle is None else settle.summary()
     try:
-        result = calippso.jam(start, network=network, **options)
+        if settle is not None and settle.certified is not None:
+            result = settle.certified
+        else:
+            result = calippso.jam(start, network=network, **options)
     except calippso.JammingError as error:   # e.g. network_first="require" refused
         print(json.dumps({"n": n, "d": d, "generator": generator, "generate": generate,
-                          "total": time.perf_counter() - clock, "error": str(error)}))
+                          "total": time.perf_counter() - clock + tried, "error": str(error),
+                          "settled": settled}))
         sys.exit(0)
-    total = time.perf_counter() - clock
+    total = time.perf_counter() - clock + tried
     history = result.history
     packing = result.packing
     search = NeighborSearch(packing.positions, packing.diameters, packing.box,
@@ -111,22 +128,25 @@ CHILD = textwrap.dedent("""
         "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "phi": result.phi, "isostatic": result.isostatic,
         "balance": result.force_balance, "converged": result.converged,
-        "min_gap": smallest_gap}))
+        "min_gap": smallest_gap, "settled": settled}))
 """)
 
 
 def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "",
              options: dict | None = None, generator: str = "ls",
              quench_pressure: float | None = None, seed: int = 1,
-             container: str = "periodic") -> dict:
+             container: str = "periodic", settle_excess: int | None = None) -> dict:
     """Generate (or read from `cache`) and jam one input in a subprocess with the jam
     `options`, in the `container` ("periodic", "walls:AXES" or "cylinder:AXES"); the row as
-    a dict."""
+    a dict. `settle_excess` (quench only): end the quench at the first overlap network
+    within that many contacts of isostatic that network first certifies
+    (`calippso.NetworkFirstSettle`)."""
     try:
         done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache,
                                json.dumps(options or {}), generator,
                                "default" if quench_pressure is None else str(quench_pressure),
-                               str(seed), container],
+                               str(seed), container,
+                               str(-1 if settle_excess is None else settle_excess)],
                               capture_output=True, text=True, timeout=timeout, check=True)
     except subprocess.TimeoutExpired:
         return {"n": n, "d": d, "timeout": timeout}
@@ -235,10 +255,16 @@ def main() -> None:
     parser.add_argument("--plot", help="draw the rows to this image (needs matplotlib)")
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                         help="further jam options, e.g. interior_point=hipo")
+    parser.add_argument("--settle-excess", type=int, default=None, metavar="K",
+                        help="quench only: network first tries each settled overlap network "
+                             "within K contacts of isostatic during the quench, which ends at "
+                             "the first one certified (jam s is then the time of the tries)")
     parser.add_argument("--container", default="periodic",
                         help="periodic (default), walls:AXES or cylinder:AXES, e.g. walls:x,y")
     args = parser.parse_args()
     options = parse_options(args.set)
+    if args.settle_excess is not None and (args.generator != "quench" or args.cache):
+        parser.error("--settle-excess takes --generator quench and no --cache")
 
     if args.from_json:
         rows = read_rows(args.from_json)
@@ -253,7 +279,7 @@ def main() -> None:
         d, n = (int(v) for v in case.split(":"))
         rows.append(run_case(d, n, args.pressure, args.timeout, args.cache, options,
                              args.generator, args.quench_pressure, args.seed,
-                             args.container))
+                             args.container, args.settle_excess))
         print(format_row(rows[-1]), flush=True)
         if args.json:
             with open(args.json, "w") as stream:

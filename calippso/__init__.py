@@ -26,6 +26,7 @@ _LAZY = {
     "analysis": ("calippso.analysis", None),  # the module itself
     "report": ("calippso.reporting", "report"),
     "jamming_category": ("calippso.categories", "jamming_category"),
+    "NetworkFirstSettle": ("calippso.routes", "NetworkFirstSettle"),
 }
 
 __all__ = ["Packing", "Boundaries", "__version__", *_LAZY]

@@ -11,7 +11,8 @@ relaxed as soft spheres.
   nearby basin instead. Its jamming point is another one than the loop's, nearby. With
   `EARLY_MAX_EXCESS` set (None, off, by default), network first (alone, no LP) tries each
   settled overlap network of the ladder that lies within that many contacts of isostatic,
-  and the relaxation ends at the first one it certifies (`_EarlyNetwork`).
+  and the relaxation ends at the first one it certifies (`NetworkFirstSettle`, which also
+  ends a `generators.soft_quench` early).
 * ``route="auto"``: the relaxed route where the LP route is predicted to be slow
   (`lp_route_slow`), the LP route elsewhere.
 
@@ -36,6 +37,7 @@ from .periodic import displacements
 from .result import JammingResult
 
 __all__ = ["ROUTES", "DEFAULT_MAX_DISPLACEMENT", "AUTO_MIN_PARTICLES", "EARLY_MAX_EXCESS",
+           "NetworkFirstSettle",
            "check_route", "gap_spread", "lp_route_slow", "jam_by_route", "relaxed_checkpoint"]
 
 #: Values of ``jam(..., route=...)``.
@@ -193,7 +195,8 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
                         max_displacement)
     limit = DEFAULT_MAX_DISPLACEMENT if max_displacement is None else max_displacement
     relaxed_at = time.perf_counter()
-    early = _EarlyNetwork(loop, packing.boundaries.is_periodic)
+    early = NetworkFirstSettle(
+        lambda reached, hint: loop(reached, hint, None, network_only=True))
     relaxation = _relax(packing, checkpoint, limit,
                         None if EARLY_MAX_EXCESS is None else early)
     relaxing = time.perf_counter() - relaxed_at
@@ -234,56 +237,63 @@ def _relax(packing: Packing, checkpoint: str | os.PathLike | None, limit: float,
                  **options)
 
 
-class _EarlyNetwork:
-    """The relaxed route's test after each rung of the ladder but the last
-    (`generators.relax(settle=...)`): network first alone on the rung's overlap network.
+class NetworkFirstSettle:
+    """A ``settle`` for `generators.soft_quench` and `generators.relax`: network first alone
+    (no LP) on each settled overlap network handed to it; the quench or relaxation ends at
+    the first one it certifies, and the certified result is kept.
 
     Parameters
     ----------
-    loop : callable
-        The CALiPPSO loop, ``loop(packing, network, checkpoint, network_only=True)``:
-        network first with no LP, JammingError when it certifies no network.
-    periodic : bool
-        The input's box is periodic (the overlap network is then handed in as the hint;
-        in a container network first reads the contacts from the gaps).
+    certify : callable, optional
+        ``certify(packing, network)``: network first with no LP on `packing` with the hint
+        `network` (None in a container, where it reads the contacts from the gaps), a
+        `JammingResult`, or `JammingError` when it certifies no network. Default:
+        ``calippso.jam(packing, network=network, network_first="require")``.
+    max_refusals : int
+        Stop trying after this many networks refused (each refusal costs network first's
+        rounds and pivots: seconds at N = 1024, a minute or two at N = 8192).
 
     Attributes
     ----------
     certified : JammingResult or None
-        The result of the rung that network first certified.
+        The result of the network that network first certified.
     tried : list of tuple
         One (where, seconds, certified) per network tried.
+
+    Examples
+    --------
+    >>> settle = calippso.NetworkFirstSettle()
+    >>> quench = generators.soft_quench(np.ones(N), 3, seed=1, settle=settle, settle_excess=16)
+    >>> result = settle.certified or calippso.jam(quench.packing, network=quench.contacts)
     """
 
-    def __init__(self, loop: Callable, periodic: bool) -> None:
-        self.loop, self.periodic = loop, periodic
+    def __init__(self, certify: Callable[[Packing, object], JammingResult] | None = None,
+                 max_refusals: int = EARLY_MAX_REFUSALS) -> None:
+        if int(max_refusals) != max_refusals or max_refusals < 1:
+            raise ValueError(f"max_refusals must be a positive integer, got {max_refusals!r}")
+        self.certify = _network_first_alone if certify is None else certify
+        self.max_refusals = int(max_refusals)
         self.certified: JammingResult | None = None
         self.tried: list[tuple[str, float, bool]] = []
-        self.seen: set[bytes] = set()
 
     def __call__(self, reached) -> str | None:
-        """None to go on down the ladder, or why the relaxation ends at `reached` (a
+        """None to go on down the ladder, or why the run ends at `reached` (a
         `generators.GenerationResult` shrunk to hard contact in or after a rung)."""
-        excess = reached.extra["isostaticity_gap"]
-        key = np.ascontiguousarray(reached.contacts).tobytes()
-        refused = sum(not ok for _, _, ok in self.tried)
-        if not 0 <= excess <= EARLY_MAX_EXCESS or key in self.seen \
-                or refused >= EARLY_MAX_REFUSALS:
+        if sum(not ok for _, _, ok in self.tried) >= self.max_refusals:
             return None
-        self.seen.add(key)
         started = time.perf_counter()
         where = (f"{'during' if reached.extra['paused'] else 'at the end of'} rung "
                  f"{reached.extra['rung']}")
+        periodic = reached.packing.boundaries.is_periodic
         try:
-            self.certified = self.loop(reached.packing,
-                                       reached.contacts if self.periodic else None, None,
-                                       network_only=True)
+            self.certified = self.certify(reached.packing,
+                                          reached.contacts if periodic else None)
         except JammingError:
             self.tried.append((where, time.perf_counter() - started, False))
             return None
         self.tried.append((where, time.perf_counter() - started, True))
-        return (f"network first certified the overlap network {where} ({excess} contacts "
-                f"beyond isostatic)")
+        return (f"network first certified the overlap network {where} "
+                f"({reached.extra['isostaticity_gap']} contacts beyond isostatic)")
 
     def summary(self) -> str:
         """The networks tried, in words for the notes ("" when none was)."""
@@ -292,6 +302,13 @@ class _EarlyNetwork:
         words = ", ".join(f"{where} {'certified' if ok else 'refused'} in {seconds:.1f} s"
                           for where, seconds, ok in self.tried)
         return f"; network first tried the overlap network {words}"
+
+
+def _network_first_alone(packing: Packing, network) -> JammingResult:
+    """`calippso.jam` with network first alone (`NetworkFirstSettle`'s default)."""
+    from .ilp import jam
+
+    return jam(packing, network=network, network_first="require")
 
 
 def _too_far(relaxed: dict, limit: float, begun: int) -> str:

@@ -23,9 +23,9 @@ from calippso.periodic import displacements, wrap
 from ._checks import check_boundaries, check_positive, phi_estimate
 from .checkpoint import Checkpoint, digest
 from .result import GenerationResult
-from .soft_quench import (BOUNDARY_KINDS, PHI_START_FACTOR, TARGET_AIM, _check_box, _Run,
-                          _shrunk_result, _SoftSpheres, check_quench_options, pressure_ladder,
-                          quench_and_shrink)
+from .soft_quench import (BOUNDARY_KINDS, PHI_START_FACTOR, SETTLE_EXCESS, TARGET_AIM,
+                          SettleAsker, _check_box, _Run, _shrunk_result, _SoftSpheres,
+                          check_quench_options, pressure_ladder, quench_and_shrink)
 
 __all__ = ["relax", "RELAX_START_PRESSURE", "RELAX_PRESSURE_REDUCTION", "SETTLE_EXCESS"]
 
@@ -37,9 +37,6 @@ RELAX_START_PRESSURE = 1e-4
 #: the caller gives none: the quench's (`soft_quench.PRESSURE_REDUCTION`); the ladder's
 #: cost against its factor: docs/notes/relaxed-route.md.
 RELAX_PRESSURE_REDUCTION = 0.1
-#: `relax` asks its `settle` only about overlap networks with at most this many contacts
-#: beyond the isostatic count when the caller gives no other bound.
-SETTLE_EXCESS = 4
 
 
 def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
@@ -167,8 +164,15 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
                                pressure_reduction), force_tolerance, max_steps)
     bound = None if max_displacement is None else _Bound(start, box, boundaries.periodic,
                                                          max_displacement)
-    asker = None if settle is None else _Asker(settle, settle_excess, packing, boundaries,
-                                                run, target_pressure, start_pressure, wall)
+    def reached(system: _SoftSpheres, rung: int, pressure: float) -> GenerationResult:
+        shrunk = _shrunk_result(system, packing.diameters, mean, boundaries, run.rows,
+                                pressure, target_pressure, f"relaxed at pressure "
+                                f"{pressure:.3g}, rung {rung} of {len(run.ladder)}", wall,
+                                False, packing.box)
+        shrunk.extra.update(rungs=run.ladder.copy(), halted=False)
+        return _aligned(shrunk, packing, start_pressure)
+
+    asker = None if settle is None else SettleAsker(settle, settle_excess, run, reached)
 
     def watch(reached: _SoftSpheres) -> str | None:
         if bound is not None and bound(reached) is not None:
@@ -183,74 +187,6 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
                         halted=bound is not None and bound.reason is not None,
                         settled=run.settled_by or (None if asker is None else asker.reason))
     return _aligned(result, packing, start_pressure)
-
-
-class _Asker:
-    """When `relax` asks its caller's `settle` whether the state reached will do, and what it
-    hands it: the state shrunk to hard contact, after every rung but the last
-    (`after_rung`), and at a pause of a minimisation where the overlap network without
-    rattlers is the same as at the previous pause (`at_pause`); each network once, and
-    only one within `excess` contacts of isostatic, not hypostatic.
-
-    Attributes
-    ----------
-    reason : str or None
-        What `settle` answered at a pause, if it ended the relaxation there.
-    """
-
-    def __init__(self, settle: Callable[[GenerationResult], str | None], excess: int,
-                 packing: Packing, boundaries, run: _Run, target_pressure: float,
-                 start_pressure: float, wall: float) -> None:
-        self.settle, self.excess = settle, excess
-        self.packing, self.boundaries, self.run = packing, boundaries, run
-        self.target_pressure, self.start_pressure, self.wall = (target_pressure,
-                                                                start_pressure, wall)
-        self.previous: np.ndarray | None = None
-        self.asked: set[bytes] = set()
-        self.reason: str | None = None
-
-    def after_rung(self, system: _SoftSpheres) -> str | None:
-        """`settle`'s answer at the end of the rung just finished (None without asking
-        when its network is not one to ask about)."""
-        self.previous = None
-        network, stable = system.stable_network()
-        if not self._new_and_near(system, network, stable):
-            return None
-        return self._ask(system, self.run.rung, self.run.pressure, False)
-
-    def at_pause(self, system: _SoftSpheres) -> str | None:
-        """`settle`'s answer at a pause whose network has not changed since the last one
-        (None without asking otherwise). The network is read from the minimisation's
-        neighbour lists, without a rebuild."""
-        network, stable = system.stable_network(rebuild=False)
-        same = self.previous is not None and np.array_equal(network, self.previous)
-        self.previous = network
-        if not same or not self._new_and_near(system, network, stable):
-            return None
-        self.reason = self._ask(system, self.run.rung + 1,
-                                float(self.run.ladder[self.run.rung]), True)
-        return self.reason
-
-    def _new_and_near(self, system: _SoftSpheres, network: np.ndarray, stable: int) -> bool:
-        """`network` (of `stable` particles) was not asked about yet, and lies within
-        `excess` contacts of isostatic, not below; it counts as asked from now on."""
-        key = network.tobytes()
-        if key in self.asked or not 0 <= len(network) - system.isostatic_count(stable) \
-                <= self.excess:
-            return False
-        self.asked.add(key)
-        return True
-
-    def _ask(self, system: _SoftSpheres, rung: int, pressure: float,
-             paused: bool) -> str | None:
-        diameters = self.packing.diameters
-        shrunk = _shrunk_result(system, diameters, float(diameters.mean()), self.boundaries,
-                                self.run.rows, pressure, self.target_pressure,
-                                f"relaxed at pressure {pressure:.3g}, rung {rung} of "
-                                f"{len(self.run.ladder)}", self.wall, False, self.packing.box)
-        shrunk.extra.update(rungs=self.run.ladder.copy(), rung=rung, paused=paused,
-                            halted=False, settled=None)
-        return self.settle(_aligned(shrunk, self.packing, self.start_pressure))
 
 
 class _Bound:

@@ -109,6 +109,9 @@ BASE_PHASE, NEWTON_PHASE = 0.0, 1.0
 HALTED = 3
 #: Code of a quench that its `settled` test ended after a rung (`quench_and_shrink`).
 SETTLED = 4
+#: `soft_quench` and `relax` ask their `settle` only about overlap networks with at most
+#: this many contacts beyond the isostatic count when the caller gives no other bound.
+SETTLE_EXCESS = 4
 #: The minimisers `soft_quench` offers ("auto" picks one by the dimension).
 MINIMISERS = ("auto", "fire", "lbfgs", "newton")
 #: Where each minimiser's state array holds λ = ln a.
@@ -515,7 +518,9 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
                 progress: bool = False, skin: float = 0.2, max_steps: int = 50_000_000,
                 checkpoint: str | os.PathLike | None = None,
                 checkpoint_every: float = 60.0, minimiser: str = "auto",
-                boundaries: Boundaries | None = None) -> GenerationResult:
+                boundaries: Boundaries | None = None,
+                settle: Callable[[GenerationResult], str | None] | None = None,
+                settle_excess: int = SETTLE_EXCESS) -> GenerationResult:
     """Quench harmonic soft spheres to a vanishing pressure, then shrink them to hard contact.
 
     The route of O'Hern, Silbert, Liu & Nagel (2003) into a hard-sphere jamming basin, with
@@ -591,6 +596,23 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         box shrinking affinely, walls and all. Along a walled or a cylinder's axis there is
         no minimum image and no wrap.
 
+    settle : callable, optional
+        ``settle(reached)`` after every converged rung of the ladder but the last, and at
+        every pause of a minimisation (every 1000 minimiser steps, every list rebuild)
+        where the overlap network without rattlers has not changed since the previous
+        pause, each network once, when that network is neither hypostatic nor more than
+        `settle_excess` contacts beyond isostatic; `reached` is the state shrunk to hard
+        contact (a `GenerationResult` as returned, ``extra["rung"]`` its rung counted from
+        1, ``extra["paused"]`` True within a minimisation). It returns None to go on, or
+        the reason to end the quench there, in words (e.g. ``calippso.NetworkSettle``: its
+        network was certified with no LP). The result is then that state,
+        ``extra["settled"]`` the reason, and the status says where it ended. A state
+        handed to `settle` is shrunk from a fresh neighbour list, which changes the order
+        of the floating-point sums, hence the minimiser's path, from a run without
+        `settle`.
+    settle_excess : int
+        See `settle` (default `SETTLE_EXCESS`, 4).
+
     Returns
     -------
     GenerationResult
@@ -615,7 +637,9 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         (N_s), ``overlap_correction`` (round-off shrink after an independent check, ~0),
         ``resumed`` (whether the run continued from a checkpoint; `wall_time` then adds up
         every call's time), ``minimiser`` ("fire", "lbfgs" or "newton": the one that ran), ``newton_solves``
-        (the Newton solves among `steps`).
+        (the Newton solves among `steps`). Given `settle`: ``rungs`` (pressures of the
+        ladder), ``rung`` (the rungs in `history`), ``settled`` (the reason `settle` gave,
+        or None).
         With walls the packing carries the boundaries and lies inside its container;
         `contacts` holds particle pairs only (the stable particles are found with the wall
         contacts counted), and ``wall_contacts`` (particle, wall) pairs, walls 2μ at 0 and
@@ -660,8 +684,23 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
                           boundaries.periodic, boundaries.cylinder_axes)
     run = _Run(pressure_ladder(FIRST_PRESSURE, TARGET_AIM * target_pressure),
                force_tolerance, max_steps)
-    return quench_and_shrink(system, run, saver, diameters, boundaries, target_pressure,
-                             progress, wall)
+    if settle is None:
+        return quench_and_shrink(system, run, saver, diameters, boundaries, target_pressure,
+                                 progress, wall)
+
+    def reached(system: _SoftSpheres, rung: int, pressure: float) -> GenerationResult:
+        shrunk = _shrunk_result(system, diameters, mean, boundaries, run.rows, pressure,
+                                target_pressure, f"quenched to pressure {pressure:.3g}, rung "
+                                f"{rung} of {len(run.ladder)}", wall, False)
+        shrunk.extra["rungs"] = run.ladder.copy()
+        return shrunk
+
+    asker = SettleAsker(settle, settle_excess, run, reached)
+    result = quench_and_shrink(system, run, saver, diameters, boundaries, target_pressure,
+                               progress, wall, watch=asker.at_pause, settled=asker.after_rung)
+    result.extra.update(rungs=run.ladder.copy(), rung=len(run.rows),
+                        settled=run.settled_by or asker.reason)
+    return result
 
 
 def check_quench_options(n: int, d: int, boundaries: Boundaries,
@@ -686,6 +725,82 @@ def check_quench_options(n: int, d: int, boundaries: Boundaries,
     if minimiser == "auto":
         minimiser = "lbfgs" if d >= LBFGS_FROM_DIMENSION else "fire"
     return target_pressure, force_tolerance, skin, minimiser
+
+
+class SettleAsker:
+    """When a quench or a relaxation asks its caller's `settle` whether the state reached
+    will do, and what it hands it: the state shrunk to hard contact, after every rung but
+    the last (`after_rung`), and at a pause of a minimisation where the overlap network
+    without rattlers is the same as at the previous pause (`at_pause`); each network once,
+    and only one within `excess` contacts of isostatic, not hypostatic.
+
+    Parameters
+    ----------
+    settle : callable
+        ``settle(reached)``: None to go on, or the reason to end the run there, in words.
+    excess : int
+        Largest number of contacts beyond the isostatic count of a network asked about.
+    run : _Run
+        The run's ladder and history.
+    reached : callable
+        ``reached(system, rung, pressure)``: the state shrunk to hard contact, as the
+        caller returns its results (`rung` counted from 1).
+
+    Attributes
+    ----------
+    reason : str or None
+        What `settle` answered at a pause, if it ended the run there.
+    """
+
+    def __init__(self, settle: Callable[[GenerationResult], str | None], excess: int,
+                 run: "_Run",
+                 reached: Callable[["_SoftSpheres", int, float], GenerationResult]) -> None:
+        if int(excess) != excess or excess < 0:
+            raise ValueError(f"settle_excess must be a non-negative integer, got {excess!r}")
+        self.settle, self.excess, self.run, self.reached = settle, int(excess), run, reached
+        self.previous: np.ndarray | None = None
+        self.asked: set[bytes] = set()
+        self.reason: str | None = None
+
+    def after_rung(self, system: "_SoftSpheres") -> str | None:
+        """`settle`'s answer at the end of the rung just finished (None without asking
+        when its network is not one to ask about)."""
+        self.previous = None
+        network, stable = system.stable_network()
+        if not self._new_and_near(system, network, stable):
+            return None
+        return self._ask(system, self.run.rung, self.run.pressure, False)
+
+    def at_pause(self, system: "_SoftSpheres") -> str | None:
+        """`settle`'s answer at a pause whose network has not changed since the last one
+        (None without asking otherwise). The network is read from the minimisation's
+        neighbour lists, without a rebuild."""
+        network, stable = system.stable_network(rebuild=False)
+        same = self.previous is not None and np.array_equal(network, self.previous)
+        self.previous = network
+        if not same or not self._new_and_near(system, network, stable):
+            return None
+        self.reason = self._ask(system, self.run.rung + 1,
+                                float(self.run.ladder[self.run.rung]), True)
+        return self.reason
+
+    def _new_and_near(self, system: "_SoftSpheres", network: np.ndarray,
+                      stable: int) -> bool:
+        """`network` (of `stable` particles) was not asked about yet, and lies within
+        `excess` contacts of isostatic, not below, and holds some particle; it counts as
+        asked from now on."""
+        key = network.tobytes()
+        if key in self.asked or stable == 0 \
+                or not 0 <= len(network) - system.isostatic_count(stable) <= self.excess:
+            return False
+        self.asked.add(key)
+        return True
+
+    def _ask(self, system: "_SoftSpheres", rung: int, pressure: float,
+             paused: bool) -> str | None:
+        reached = self.reached(system, rung, pressure)
+        reached.extra.update(rung=rung, paused=paused, settled=None)
+        return self.settle(reached)
 
 
 def quench_and_shrink(system: _SoftSpheres, run: "_Run", saver: Checkpoint,

@@ -93,17 +93,17 @@ def test_without_the_early_end_the_whole_ladder_runs(spheres, monkeypatch):
     assert "network first tried" not in " ".join(result.notes)
 
 
-def test_the_route_stops_trying_networks_after_its_refusals(monkeypatch):
-    monkeypatch.setattr(calippso.routes, "EARLY_MAX_EXCESS", 4)
+def test_the_settle_stops_trying_networks_after_its_refusals():
     tried = []
 
-    def refusing_loop(packing, network, checkpoint, network_only):
+    def refusing(packing, network):
         tried.append(network.copy())
         raise calippso.JammingError("no network certified")
 
-    early = calippso.routes._EarlyNetwork(refusing_loop, periodic=True)
+    early = calippso.NetworkFirstSettle(refusing)
+    periodic = SimpleNamespace(boundaries=SimpleNamespace(is_periodic=True))
     for other in range(1, 5):
-        reached = SimpleNamespace(packing=None, contacts=np.array([[0, other]]),
+        reached = SimpleNamespace(packing=periodic, contacts=np.array([[0, other]]),
                                   extra={"isostaticity_gap": 1, "rung": 4, "paused": True})
         assert early(reached) is None
     assert len(tried) == calippso.routes.EARLY_MAX_REFUSALS and early.certified is None
