@@ -88,22 +88,9 @@ def relax(packing: Packing, *, start_pressure: float = RELAX_START_PRESSURE,
     pressure_reduction : float
         Smallest factor between two successive pressures of the ladder, in (0, 1) (default
         0.1, as `soft_quench`: from 1e-4 to half the default target of 1e-6 in three steps).
-    settle : callable, optional
-        ``settle(reached)`` after every converged rung of the ladder but the last, and at
-        every pause of a minimisation (every 1000 minimiser steps, every list rebuild)
-        where the overlap network without rattlers has not changed since the previous
-        pause, each network once, when that network is neither hypostatic nor more than
-        `settle_excess` contacts beyond isostatic; `reached` is the state shrunk to hard
-        contact (a
-        `GenerationResult` as returned, ``extra["rung"]`` its rung counted from 1,
-        ``extra["paused"]`` True within a minimisation). It returns None to go on, or the
-        reason to end the relaxation there, in words (e.g. its network was certified). The
-        result is then that state, ``extra["settled"]`` the reason, and the status says
-        where it ended. A state handed to `settle` is shrunk from a fresh neighbour list,
-        which changes the order of the floating-point sums, hence the minimiser's path,
-        from a run without `settle`.
-    settle_excess : int
-        See `settle` (default `SETTLE_EXCESS`).
+    settle, settle_excess
+        As in `soft_quench`: ``settle(reached)`` decides whether the relaxation ends at a
+        settled state (`reached` as this function returns it, from the input's box).
 
     Returns
     -------
