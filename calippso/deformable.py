@@ -320,9 +320,11 @@ def jam_deformable(packing: Packing, settings: JamSettings, callback=None) -> Ja
 
     while history.lps_solved < settings.max_iters:
         step = bound
-        if pinned is not None:   # the cell centred on the pinned particle
-            centre = positions[pinned] - 0.5 * matrix.sum(axis=1)
-            positions = lattice_wrap(positions - centre, matrix) + centre
+        # the centres in one cell (`_select` bounds the image vectors by its diameter),
+        # centred on the pinned particle (the strain's affine move then fits the bound)
+        origin = (positions[pinned] - 0.5 * matrix.sum(axis=1) if pinned is not None
+                  else np.zeros(d))
+        positions = lattice_wrap(positions - origin, matrix) + origin
         while True:
             pairs = _select(positions, diameters, matrix, step)
             if pairs is not None:
