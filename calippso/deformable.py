@@ -76,9 +76,11 @@ DEFORMABLE_NOTE = ("deformable box: LP loop and strict Newton stage (no network-
 #: A pair whose selection would reach this fraction of half the shortest box vector makes the
 #: bound halve (the minimum image must stay unique).
 SAFE_REACH = 1.0 - 1e-9
-#: Smallest first bound on displacements (mean diameters), as the fixed box's
-#: `calippso.ilp.INITIAL_STEP_FLOOR`.
-INITIAL_STEP_FLOOR = 1e-3
+#: Smallest first bound on displacements (mean diameters). From the fixed box's
+#: (`calippso.ilp.INITIAL_STEP_FLOOR`, 1e-3) the first LPs of a deformable run on an LS input
+#: reach their bound one after another, and each is solved cold while the bound grows by
+#: `JamSettings.step_growth` (4); starting at 1.6e-2 skips two of them.
+INITIAL_STEP_FLOOR = 1.6e-2
 #: Bound on every strain variable per unit of b / W, with b the step bound and W the longest
 #: box vector: the strain then moves a centre by a few b at most, relative to the pinned one.
 STRAIN_BOUND = 1.0
