@@ -47,7 +47,7 @@ from jam import parse_options
 DEFAULT_CASES = ["3:1024", "3:2048", "3:4096", "3:8192", "3:16384", "4:1024", "5:1024"]
 
 CHILD = textwrap.dedent("""
-    import json, os, resource, sys, time
+    import functools, json, os, resource, sys, time
     import numpy as np
     import calippso
     from calippso.neighbors import NeighborSearch
@@ -84,9 +84,8 @@ CHILD = textwrap.dedent("""
                                                      seed=seed, **walled)
         else:
             if settle_excess >= 0:
-                walled["settle"] = calippso.NetworkFirstSettle(
-                    lambda packing, hint: calippso.jam(packing, network=hint,
-                                                       network_first="require", **options))
+                walled["settle"] = calippso.NetworkFirstSettle(functools.partial(
+                    calippso.jam, network_first="require", **options))
                 walled["settle_excess"] = settle_excess
             made = generators.soft_quench(sizes, d, seed=seed, target_pressure=quench_pressure,
                                           **walled)

@@ -196,7 +196,7 @@ def jam_by_route(packing: Packing, route: str, max_displacement: float | None, n
     limit = DEFAULT_MAX_DISPLACEMENT if max_displacement is None else max_displacement
     relaxed_at = time.perf_counter()
     early = NetworkFirstSettle(
-        lambda reached, hint: loop(reached, hint, None, network_only=True))
+        lambda reached, network: loop(reached, network, None, network_only=True))
     relaxation = _relax(packing, checkpoint, limit,
                         None if EARLY_MAX_EXCESS is None else early)
     relaxing = time.perf_counter() - relaxed_at
@@ -244,11 +244,12 @@ class NetworkFirstSettle:
 
     Parameters
     ----------
-    certify : callable, optional
-        ``certify(packing, network)``: network first with no LP on `packing` with the hint
-        `network` (None in a container, where it reads the contacts from the gaps), a
-        `JammingResult`, or `JammingError` when it certifies no network. Default:
-        ``calippso.jam(packing, network=network, network_first="require")``.
+    certify : callable
+        ``certify(packing, network=hint)``: network first with no LP on `packing` with the
+        hint `hint` (None in a container, where it reads the contacts from the gaps), a
+        `JammingResult`, or `JammingError` when it certifies no network; typically
+        ``functools.partial(calippso.jam, network_first="require")``, with further `jam`
+        options if wanted.
     max_refusals : int
         Stop trying after this many networks refused (each refusal costs network first's
         rounds and pivots: seconds at N = 1024, a minute or two at N = 8192).
@@ -262,16 +263,17 @@ class NetworkFirstSettle:
 
     Examples
     --------
-    >>> settle = calippso.NetworkFirstSettle()
+    >>> settle = calippso.NetworkFirstSettle(
+    ...     functools.partial(calippso.jam, network_first="require"))
     >>> quench = generators.soft_quench(np.ones(N), 3, seed=1, settle=settle, settle_excess=16)
     >>> result = settle.certified or calippso.jam(quench.packing, network=quench.contacts)
     """
 
-    def __init__(self, certify: Callable[[Packing, object], JammingResult] | None = None,
+    def __init__(self, certify: Callable[..., JammingResult],
                  max_refusals: int = EARLY_MAX_REFUSALS) -> None:
         if int(max_refusals) != max_refusals or max_refusals < 1:
             raise ValueError(f"max_refusals must be a positive integer, got {max_refusals!r}")
-        self.certify = _network_first_alone if certify is None else certify
+        self.certify = certify
         self.max_refusals = int(max_refusals)
         self.certified: JammingResult | None = None
         self.tried: list[tuple[str, float, bool]] = []
@@ -287,7 +289,7 @@ class NetworkFirstSettle:
         periodic = reached.packing.boundaries.is_periodic
         try:
             self.certified = self.certify(reached.packing,
-                                          reached.contacts if periodic else None)
+                                          network=reached.contacts if periodic else None)
         except JammingError:
             self.tried.append((where, time.perf_counter() - started, False))
             return None
@@ -302,13 +304,6 @@ class NetworkFirstSettle:
         words = ", ".join(f"{where} {'certified' if ok else 'refused'} in {seconds:.1f} s"
                           for where, seconds, ok in self.tried)
         return f"; network first tried the overlap network {words}"
-
-
-def _network_first_alone(packing: Packing, network) -> JammingResult:
-    """`calippso.jam` with network first alone (`NetworkFirstSettle`'s default)."""
-    from .ilp import jam
-
-    return jam(packing, network=network, network_first="require")
 
 
 def _too_far(relaxed: dict, limit: float, begun: int) -> str:

@@ -604,7 +604,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         `settle_excess` contacts beyond isostatic; `reached` is the state shrunk to hard
         contact (a `GenerationResult` as returned, ``extra["rung"]`` its rung counted from
         1, ``extra["paused"]`` True within a minimisation). It returns None to go on, or
-        the reason to end the quench there, in words (e.g. ``calippso.NetworkSettle``: its
+        the reason to end the quench there, in words (e.g. ``calippso.NetworkFirstSettle``: its
         network was certified with no LP). The result is then that state,
         ``extra["settled"]`` the reason, and the status says where it ended. A state
         handed to `settle` is shrunk from a fresh neighbour list, which changes the order

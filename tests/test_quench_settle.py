@@ -8,6 +8,8 @@ point is certified (positive forces, no overlap, isostatic, balance 1e-12)."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -43,7 +45,8 @@ def test_the_quench_asks_about_near_networks_and_runs_on_when_told():
 
 
 def test_network_first_settle_ends_the_quench_at_a_certified_network():
-    settle = calippso.NetworkFirstSettle()
+    settle = calippso.NetworkFirstSettle(functools.partial(calippso.jam,
+                                                           network_first="require"))
     quench = generators.soft_quench(np.ones(N), D, seed=SEED, settle=settle,
                                     settle_excess=EXCESS)
     assert quench.extra["settled"] is not None

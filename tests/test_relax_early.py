@@ -96,7 +96,7 @@ def test_without_the_early_end_the_whole_ladder_runs(spheres, monkeypatch):
 def test_the_settle_stops_trying_networks_after_its_refusals():
     tried = []
 
-    def refusing(packing, network):
+    def refusing(packing, *, network):
         tried.append(network.copy())
         raise calippso.JammingError("no network certified")
 
