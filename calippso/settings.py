@@ -12,7 +12,14 @@ __all__ = ["JamSettings", "INTERIOR_LP_MIN_COLUMNS"]
 #: Values accepted by ``jam(..., network_first=...)``.
 NETWORK_FIRST_MODES = ("auto", "off", "require")
 #: Values accepted by ``jam(..., pivots=...)``.
-PIVOT_MODES = ("network_first", "always", "off")
+PIVOT_MODES = ("network_first", "off")
+#: Values of ``pivots`` that were removed, and why (`JamSettings` raises ValueError with this
+#: text).
+REMOVED_PIVOT_MODES = {
+    "always": "pivots='always' (contact pivots in the LP loop) was removed: they certified "
+              "no run that the Newton stage did not, and cost time "
+              "(docs/notes/certification-stages.md); use the default 'network_first'",
+}
 
 #: Names accepted by ``jam(..., interior_point=...)`` (HiGHS backend).
 INTERIOR_POINT_SOLVERS = ("auto", "ipx", "hipo")
@@ -95,8 +102,8 @@ class JamSettings:
     pivots : str
         Where contact pivots (`calippso.pivots`) repair an isostatic network whose jamming
         point has non-positive forces and no overlap: "network_first" (default) in the
-        network-first stage, before another round of the restricted LP; "always" in the
-        LP loop's Newton stage too, instead of more LPs; "off": never.
+        network-first stage, before another round of the restricted LP (and, with
+        ``crossover="off"``, in the LP loop's Newton stage too); "off": never.
     verify_newton : bool
         After a certified Newton stage, solve one more LP at the final configuration and
         continue the loop unless it meets the convergence criteria.
@@ -166,6 +173,8 @@ class JamSettings:
         if self.network_first not in NETWORK_FIRST_MODES:
             raise ValueError(f"unknown network_first {self.network_first!r}: choose one of "
                              f"{', '.join(NETWORK_FIRST_MODES)}")
+        if self.pivots in REMOVED_PIVOT_MODES:
+            raise ValueError(REMOVED_PIVOT_MODES[self.pivots])
         if self.pivots not in PIVOT_MODES:
             raise ValueError(f"unknown pivots {self.pivots!r}: choose one of "
                              f"{', '.join(PIVOT_MODES)}")

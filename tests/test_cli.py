@@ -455,17 +455,18 @@ def test_generate_quench_keeps_its_network_for_jam(capfd, tmp_path):
 
 
 def test_jam_pivots_option(capfd, tmp_path, start_2d):
-    """--pivots reaches jam: 'always' and 'off' jam this start to the same certified packing,
-    and an unknown mode is a usage error."""
+    """--pivots reaches jam: 'network_first' and 'off' jam this start to the same certified
+    packing, and an unknown mode ('always' included) is a usage error."""
     results = {}
-    for mode in ("always", "off"):
+    for mode in ("network_first", "off"):
         path = tmp_path / f"{mode}.npz"
         assert _run(capfd, "jam", start_2d, "-o", path, "--pivots", mode, "--quiet")[0] == 0
         results[mode] = calippso.load_result(path)
         assert results[mode].converged and results[mode].isostatic
-    np.testing.assert_array_equal(results["always"].contacts, results["off"].contacts)
-    code, _, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "z.npz", "--pivots", "some")
-    assert code == 2 and "--pivots" in err
+    np.testing.assert_array_equal(results["network_first"].contacts, results["off"].contacts)
+    for mode in ("some", "always"):
+        code, _, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "z.npz", "--pivots", mode)
+        assert code == 2 and "--pivots" in err
 
 
 def test_generate_quench_minimiser_option(capfd, tmp_path):

@@ -254,13 +254,19 @@ def test_a_crystal_falls_back_cleanly(crystal):
     touching pairs already touches. Pivots cannot certify it (a touching pair is left out),
     and jam ends exactly as with pivots off, by the LP loop."""
     with pytest.raises(JammingError):
-        jam(crystal, network_first="require", pivots="always")
-    result = jam(crystal, pivots="always")
+        jam(crystal, network_first="require")
+    result = jam(crystal)
     off = jam(crystal, pivots="off")
     assert result.converged and result.isostaticity_gap >= 0
     assert result.iterations == off.iterations >= 1
     np.testing.assert_array_equal(result.contacts, off.contacts)
     assert result.phi == off.phi
+
+
+def test_pivots_in_the_lp_loop_are_refused_with_the_reason():
+    """pivots='always' is not a mode: the error says it was removed and names the default."""
+    with pytest.raises(ValueError, match="'always'.*removed.*'network_first'"):
+        jam(lattices.fcc(2), pivots="always")
 
 
 def test_a_release_that_leaves_a_singular_network_gives_way_to_the_next(source, monkeypatch):

@@ -132,7 +132,8 @@ def jam_record(result, source, output: Path | None) -> dict:
     default="network_first",
     show_default=True,
     help="Where contact pivots repair an isostatic network whose forces are not all "
-    "positive (network_first: in that stage; always: in the LP loop too; off: never).",
+    "positive (network_first: in that stage, and in the LP loop with --crossover off; "
+    "off: never).",
 )
 @click.option(
     "--network",

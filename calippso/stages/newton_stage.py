@@ -3,7 +3,7 @@
 `newton` moves the configuration to the jamming point of a network and accepts it only with
 the certificate of `calippso.network.certify_network` (positive forces, no other overlap, a
 non-singular Jacobian). `newton_or_pivots` is the stage of the LP loop: with
-``pivots="always"``, a network refused only for non-positive forces is taken to the jamming
+``crossover="off"``, a network refused only for non-positive forces is taken to the jamming
 point by contact pivots (`calippso.pivots`) and certified there.
 """
 
@@ -107,12 +107,11 @@ def newton(run: Run, state: LoopState, network: ContactNetwork, *, retry: bool =
 
 def newton_or_pivots(run: Run, state: LoopState,
                      network: ContactNetwork) -> tuple[LoopState, NewtonOutcome]:
-    """The Newton stage for an LP's isostatic network; with ``pivots="always"``, or with
-    ``crossover="off"`` unless ``pivots="off"``, contact pivots from its jamming point when
-    only non-positive forces refuse it."""
+    """The Newton stage for an LP's isostatic network; with ``crossover="off"`` (unless
+    ``pivots="off"``), contact pivots from its jamming point when only non-positive forces
+    refuse it."""
     settings = run.settings
-    pivots = settings.pivots == "always" or (settings.crossover == "off"
-                                             and settings.pivots != "off")
+    pivots = settings.crossover == "off" and settings.pivots != "off"
     if not pivots or network.key() in state.failed_networks:
         return newton(run, state, network)
     refinement = refine_isostatic(state.positions, state.diameters, run.box, network.i,
