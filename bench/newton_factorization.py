@@ -22,8 +22,8 @@ import numpy as np
 from scipy.sparse.linalg import splu
 
 import calippso
-from calippso.newton import contact_jacobian
-from calippso.sparse_lu import factorize, pardiso_available
+from calippso.certification.newton import contact_jacobian
+from calippso.certification.sparse_lu import factorize, pardiso_available
 
 SUPERLU_ORDERINGS = ["COLAMD", "MMD_ATA", "MMD_AT_PLUS_A"]
 

@@ -4,7 +4,7 @@ Each input is a soft-sphere quench (d = 3, seed 1, p = 1e-7; `generators.soft_qu
 jammed with no LP (`jam(..., network=q.contacts)`). Its jammed network then has k contacts
 swapped for some of the nearest pairs that are not contacts (random draws), chosen
 so that the swapped network's Newton point overlaps no other pair and has non-positive
-forces. `calippso.pivots.pivot_to_jamming` runs from that point. Run from the repository
+forces. `calippso.certification.pivots.pivot_to_jamming` runs from that point. Run from the repository
 root:
 
     python bench/pivots.py --sizes 1024 2048 4096 --swaps 3
@@ -26,8 +26,8 @@ import numpy as np
 
 import calippso
 from calippso.neighbors import NeighborSearch
-from calippso.newton import refine_isostatic
-from calippso.pivots import pivot_to_jamming
+from calippso.certification.newton import refine_isostatic
+from calippso.certification.pivots import pivot_to_jamming
 from calippso.rattlers import remove_rattlers
 
 #: Nearest non-contacts from which the swaps are drawn.

@@ -15,12 +15,12 @@ Stages and their switches (a setting where `JamSettings` has one; otherwise a mo
 name replaced for the run, said in the table below):
 
     network_first_off   JamSettings(network_first="off")
-    rounds_off          calippso.network_first.MAX_ROUNDS = 1 (one round per candidate)
-    restricted_lp_off   calippso.network_first.lp_network refuses every candidate
-    floppy_off          calippso.network_first.close_floppy_modes refuses
-    nf_pivots_off       calippso.network_first.pivot_to_jamming refuses (pivots and the
+    rounds_off          calippso.certification.network_first.MAX_ROUNDS = 1 (one round per candidate)
+    restricted_lp_off   calippso.certification.network_first.lp_network refuses every candidate
+    floppy_off          calippso.certification.network_first.close_floppy_modes refuses
+    nf_pivots_off       calippso.certification.network_first.pivot_to_jamming refuses (pivots and the
                         repair of singular networks inside network first)
-    repair_off          calippso.pivots.path.repair_singular refuses (everywhere)
+    repair_off          calippso.certification.pivots.path.repair_singular refuses (everywhere)
     newton_off          JamSettings(newton=False): no Newton stage after LPs
     verify_on           JamSettings(verify_newton=True)
     cleanup_off         calippso.stages.finish._cleanup keeps the network (least-squares
@@ -103,8 +103,8 @@ def _keep_network(run, state, network):
 
 def _patches(variant: str) -> list[tuple[object, str, object]]:
     """(module, name, replacement) for the variant's switch."""
-    import calippso.network_first as nf
-    import calippso.pivots.path as path
+    import calippso.certification.network_first as nf
+    import calippso.certification.pivots.path as path
     import calippso.stages.finish as finish
     return {"rounds_off": [(nf, "MAX_ROUNDS", 1)],
             "restricted_lp_off": [(nf, "lp_network", _refuse("restricted LP off"))],
@@ -124,10 +124,10 @@ def _counted(calls: Counter, key: str, function):
 def _probes(calls: Counter) -> list[tuple[object, str, object]]:
     """Counting wrappers for the functions of `VARIANTS` (default run only)."""
     import calippso.ilp as ilp
-    import calippso.network_first as nf
-    import calippso.pivots.path as path
+    import calippso.certification.network_first as nf
+    import calippso.certification.pivots.path as path
     import calippso.stages.finish as finish
-    import calippso.stages.network_first as stage
+    import calippso.stages.network_first_stage as stage
     return [(stage, "settle_candidate", _counted(calls, "settle_candidate",
                                                  stage.settle_candidate)),
             (nf, "lp_network", _counted(calls, "lp_network", nf.lp_network)),

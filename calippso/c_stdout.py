@@ -3,7 +3,7 @@
 Some compiled code writes to file descriptor 1 directly, past `sys.stdout`: highspy's banner
 when the first `Highs` object is built, and the BLAS error handler that SuperLU reaches on a
 numerically singular matrix ("On entry to DTRSV parameter number 6 had an illegal value";
-SuperLU then fails, and `calippso.sparse_lu.factorize` reports the matrix as singular). The
+SuperLU then fails, and `calippso.certification.sparse_lu.factorize` reports the matrix as singular). The
 command line writes its results (``--json``) to standard output, which must carry nothing
 else, so these calls run with descriptor 1 pointed elsewhere.
 """

@@ -32,7 +32,7 @@ volume's multiplier (`JammingResult.stress`, docs/theory.md).
 
 Once an LP's step is small (largest displacement below `JamSettings.newton_start`) and its
 contact network has the strict count, N_c = d (N_s − 1) + d(d+1)/2, the strict Newton stage
-(`calippso.strict_newton`) solves that network's contact equations in the positions, the
+(`calippso.certification.strict_newton`) solves that network's contact equations in the positions, the
 strain and Γ, and stops the loop where it certifies the point (``newton=False`` turns it
 off). What the fixed-box loop does and this one does not: the network-first stage, the
 contact pivots, the force clean-up LP, checkpoints and walls; the notes say so.
@@ -64,7 +64,7 @@ from .sheared_search import half_shortest_vector, sheared_pairs_within
 from .solvers.policy import LPFailed, SolverPolicy, next_warm_start
 from .stages.lp_step import VANISHING_STEP_FRACTION
 from .step import BINDING_REDUCED_COST, at_bound
-from .strict_newton import StrictRefinement, refine_strict, strict_unknowns
+from .certification.strict_newton import StrictRefinement, refine_strict, strict_unknowns
 from .walls import EMPTY_WALLS
 
 __all__ = ["jam_deformable", "strain_count", "strict_zero_modes", "strain_matrix",
@@ -467,7 +467,7 @@ def _next_bound(step: float, taken: dict, settings: JamSettings) -> float:
 
 @dataclass(frozen=True, eq=False)
 class _NewtonPoint:
-    """A network of an LP solved by `calippso.strict_newton.refine_strict` and certified."""
+    """A network of an LP solved by `calippso.certification.strict_newton.refine_strict` and certified."""
 
     refinement: StrictRefinement
     i: np.ndarray
@@ -479,7 +479,7 @@ class _NewtonPoint:
 def _strict_newton(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
                    pairs: Pairs, taken: dict, tried: set,
                    round_off: float) -> _NewtonPoint | None:
-    """The strictly jammed point of the LP's network (`calippso.strict_newton`), when it has
+    """The strictly jammed point of the LP's network (`calippso.certification.strict_newton`), when it has
     the strict count, was not refused before, and its Newton solution is certified: positive
     forces, no pair of stable particles that is no contact overlapping beyond `round_off`
     (the LPs' own feasibility round-off; the result's diameters are scaled down by it) and

@@ -68,7 +68,7 @@ class StopReason(enum.Enum):
     CERTIFIED_NEWTON = "certified_newton"
     #: The input's own contact network was certified by the Newton stage, with no LP.
     NETWORK_FIRST = "network_first"
-    #: Contact pivots (`calippso.pivots`) took a network whose jamming point had
+    #: Contact pivots (`calippso.certification.pivots`) took a network whose jamming point had
     #: non-positive forces (the input's own, or an LP's) to a jamming point, which the
     #: Newton certificate proved.
     CERTIFIED_PIVOTS = "certified_pivots"

@@ -4,7 +4,7 @@
 `_run`, one stage after another (`calippso.stages`):
 
 1. the network-first stage tries the input's own contact network, with no LP
-   (`calippso.stages.network_first`);
+   (`calippso.stages.network_first_stage`);
 2. each LP step chooses the rows at the current bound, solves the LP, moves the particles by
    s* and inflates every diameter by √Γ* (`calippso.stages.lp_step`);
 3. the loop stops when an LP meets the tolerances, or when the Newton stage certifies the
@@ -36,8 +36,8 @@ from .history import History, StopReason
 from .inputs import as_packing, check_enough_particles, check_input_overlaps
 from .neighbors import NeighborSearch
 from .network import ContactNetwork
-from .network_guess import check_network_hint
-from .newton import pinned_coordinates
+from .certification.network_guess import check_network_hint
+from .certification.newton import pinned_coordinates
 from .packing import Packing, wrap
 from .result import JammingResult
 from .routes import jam_by_route
@@ -45,7 +45,7 @@ from .settings import JamSettings
 from .solvers.policy import LPAttempt, SolverPolicy, next_warm_start
 from .stages.finish import CLEANUP_STEP, finish
 from .stages.lp_step import LPStep, lp_step
-from .stages.network_first import network_first
+from .stages.network_first_stage import network_first
 from .stages.newton_stage import newton_or_pivots
 from .stages.saved import checkpoint_signature, resumed, save_state
 from .stages.state import LoopState, Run
@@ -394,7 +394,7 @@ def _in_a_container(settings: JamSettings, hint: np.ndarray | None, boundaries: 
     """Settings for a container: contact pivots, which do not know wall contacts yet, are
     switched off with a note, and so is a network hint (the network-first stage in a
     container reads its candidates from the gaps of pairs and walls,
-    `calippso.container_guess`)."""
+    `calippso.certification.container_guess`)."""
     if settings.pivots != "off":
         history.note(f"contact pivots skipped: not wall-aware yet ({boundaries.describe()})")
     if hint is not None:

@@ -1,7 +1,7 @@
 """Checks of a configuration given to `calippso.jam` (and to `calippso.protocols.precompress`).
 
 `Packing` itself validates shapes, values and sizes (`calippso.packing`); a network hint is
-checked by `calippso.network_guess.check_network_hint`. What is left is checked here: how the
+checked by `calippso.certification.network_guess.check_network_hint`. What is left is checked here: how the
 configuration is passed, whether it has enough particles to jam, and whether its particles
 are apart. Every check raises with a message that names the bad argument and what was
 expected.

@@ -6,7 +6,7 @@ diameters) and a network and return new values, never changing their arguments; 
 repair something they also return the note that says so, for the run's status.
 
 - `certify_network`: the jamming point of an isostatic network by Newton's method
-  (`calippso.newton`), accepted only with its certificate (positive forces, no other overlap).
+  (`calippso.certification.newton`), accepted only with its certificate (positive forces, no other overlap).
 - `touching_network`: at a degenerate jamming point, the touching pairs as the network when
   the LP duals missed contacts.
 - `polished_forces`: forces refined by least squares on the equilibrium equations.
@@ -23,7 +23,7 @@ import numpy as np
 from .boundaries import Boundaries
 from .contacts import force_balance, isostaticity_gap, polish_forces, positive_self_stress
 from .neighbors import NEAR_CONTACT_SLACK, NeighborSearch, Pairs, shrink_to_margin
-from .newton import NEWTON_FAILED, Refinement, refine_isostatic
+from .certification.newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .rattlers import remove_rattlers, separate_rattlers
 from .walls import (WallRows, empty_walls, wall_equilibrium_columns, wall_ids, wall_rows_of,
                     wall_rows_within)
@@ -210,7 +210,7 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
 
     Certified means: every force positive (wall contacts included) and no other pair
     overlapping, nor any other particle crossing a wall, beyond `NEWTON_OVERLAP_TOLERANCE`
-    (see `calippso.newton`). In a periodic box, rattlers that the moved cages now overlap are
+    (see `calippso.certification.newton`). In a periodic box, rattlers that the moved cages now overlap are
     first moved out of the way (`calippso.rattlers.separate_rattlers`). A `guessed` network
     (not an LP's) must also be the whole contact network: another touching pair of stable
     particles, or a stable particle touching a wall outside the network (h <
@@ -227,7 +227,7 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
     guessed : bool
         The network was guessed from the input, not read from an LP's duals.
     refined : Refinement, optional
-        Newton's solution from `positions`, when already computed (`calippso.network_first`).
+        Newton's solution from `positions`, when already computed (`calippso.certification.network_first`).
     boundaries : Boundaries, optional
         The box's boundaries (`calippso.boundaries`); None: periodic along every axis.
 

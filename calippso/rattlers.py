@@ -6,7 +6,7 @@ module stands on the geometry base: scipy's LP solver is imported only when
 `separate_rattlers` runs.
 
 Rattlers carry no force and do not take part in jamming, but they must not overlap. When the
-stable particles move to the jamming point of their contact network (`calippso.newton`), a
+stable particles move to the jamming point of their contact network (`calippso.certification.newton`), a
 rattler that touched its cage can end up overlapping it by the distance the cage moved.
 `separate_rattlers` solves one small LP over the rattlers' displacements s,
 

@@ -92,7 +92,7 @@ class JammingResult:
         tolerances (√Γ − 1 < tol_gamma and max |s| over non-rattlers < tol_s,
         `StopReason.CONVERGED`), or the Newton stage's certificate proved the jamming point
         of the contact network (`StopReason.CERTIFIED_NEWTON`, `StopReason.NETWORK_FIRST`,
-        see `calippso.newton`). A certified run does not check the tolerances: its last
+        see `calippso.certification.newton`). A certified run does not check the tolerances: its last
         history record is the Newton stage's own move.
     status : str
         One sentence on how the run ended, for humans: the stop reason, the last step, the

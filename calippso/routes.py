@@ -86,13 +86,13 @@ def check_route(route: str, max_displacement: float | None, network) -> None:
 
 def gap_spread(packing: Packing) -> tuple[int, float]:
     """How near a jamming point `packing` looks from its relative gaps h = |r|/σ − 1 of the
-    particle pairs within `calippso.network_guess.CANDIDATE_GAP` of contact.
+    particle pairs within `calippso.certification.network_guess.CANDIDATE_GAP` of contact.
 
     Returns
     -------
     count : int
         The fewest closest pairs whose network, rattlers removed recursively, is not
-        hypostatic (`calippso.network_guess.fewest_not_hypostatic`); 0 when even all of them
+        hypostatic (`calippso.certification.network_guess.fewest_not_hypostatic`); 0 when even all of them
         are.
     spread : float
         Decades between the gap of rank `SPREAD_FROM_RANK` × `count` and the gap of rank
@@ -100,7 +100,7 @@ def gap_spread(packing: Packing) -> tuple[int, float]:
     """
     from .contacts import isostaticity_gap, remove_rattlers
     from .neighbors import NeighborSearch
-    from .network_guess import CANDIDATE_GAP, ROUNDOFF_GAP, fewest_not_hypostatic
+    from .certification.network_guess import CANDIDATE_GAP, ROUNDOFF_GAP, fewest_not_hypostatic
 
     n, d = packing.n, packing.d
     scale = packing.mean_diameter

@@ -88,19 +88,19 @@ class JamSettings:
         A final force clean-up LP is solved when the force balance is worse than this.
     newton : bool
         Once an LP's contact network is isostatic, solve its contact equations by Newton's
-        method and certify the result (`calippso.newton`), instead of more LPs.
+        method and certify the result (`calippso.certification.newton`), instead of more LPs.
     newton_start : float
         ... once the LP's largest displacement of a stable particle is below this (mean
         diameters): earlier networks are rarely the jammed one.
     network_first : str
         Before any LP, guess the input's own contact network (a hint passed as
         ``jam(..., network=pairs)`` first, then the pairs below the largest jump of the sorted
-        gaps, `calippso.network_guess`) and, if one is isostatic, prove its jamming point by
+        gaps, `calippso.certification.network_guess`) and, if one is isostatic, prove its jamming point by
         the Newton stage and its certificate. "auto" (default): try, and run the LP loop
         when no guess is certified; "off": LPs only; "require": raise `JammingError` instead
         of running an LP (for large N, where an LP costs minutes).
     pivots : str
-        Where contact pivots (`calippso.pivots`) repair an isostatic network whose jamming
+        Where contact pivots (`calippso.certification.pivots`) repair an isostatic network whose jamming
         point has non-positive forces and no overlap: "network_first" (default) in the
         network-first stage, before another round of the restricted LP (and, with
         ``crossover="off"``, in the LP loop's Newton stage too); "off": never.

@@ -2,7 +2,7 @@
 
 SuperLU, on a numerically singular matrix, reaches the BLAS error handler, which prints "On
 entry to DGEMV parameter number 2 had an illegal value" to file descriptor 1 (past
-`sys.stdout`). `calippso.sparse_lu.factorize` sends it to standard error and reports the
+`sys.stdout`). `calippso.certification.sparse_lu.factorize` sends it to standard error and reports the
 matrix as singular; ``calippso jam --json`` output therefore stays valid JSON.
 """
 
@@ -17,7 +17,7 @@ import scipy.sparse as sp
 
 import calippso
 from calippso.c_stdout import c_stdout_to_devnull, c_stdout_to_stderr
-from calippso.sparse_lu import factorize
+from calippso.certification.sparse_lu import factorize
 from configurations import overlap_free
 from conftest import OVERLAP_TOLERANCE
 

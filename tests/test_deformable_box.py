@@ -303,7 +303,7 @@ def binary_spheres():
 
 
 def test_strict_newton_finds_the_jammed_point_of_a_perturbed_strict_network(binary_spheres):
-    from calippso.strict_newton import refine_strict
+    from calippso.certification.strict_newton import refine_strict
 
     jammed = binary_spheres[1]
     assert_strictly_jammed(jammed)

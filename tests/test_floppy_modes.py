@@ -1,4 +1,4 @@
-"""Closing the floppy modes of a hypostatic network (`calippso.floppy_modes`), on its own and as
+"""Closing the floppy modes of a hypostatic network (`calippso.certification.floppy_modes`), on its own and as
 the start of network first in `jam`.
 
 The inputs are jammed packings taken back down their own contact manifold: k contacts are
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from calippso import JammingError, Packing, StopReason, jam
-from calippso.floppy_modes import close_floppy_modes
+from calippso.certification.floppy_modes import close_floppy_modes
 from calippso.neighbors import NeighborSearch
 from calippso.packing import minimum_image
 from calippso.rattlers import remove_rattlers

@@ -17,7 +17,7 @@ from calippso import settings as settings_module
 from calippso.settings import INTERIOR_LP_MIN_COLUMNS, JamSettings
 from calippso.solvers import LPSolution
 from calippso.solvers.highs import HighsOptions, solve
-from calippso.stages import network_first as network_first_stage
+from calippso.stages import network_first_stage
 from calippso.stages.newton_stage import INTERIOR_PIVOTS
 from calippso.step import analyse
 

@@ -14,7 +14,7 @@ import pytest
 
 import generators
 from calippso import JammingError, Packing, StopReason, jam
-from calippso.network_guess import candidate_networks
+from calippso.certification.network_guess import candidate_networks
 from calippso.neighbors import NeighborSearch
 
 import lattices

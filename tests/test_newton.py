@@ -5,8 +5,8 @@ import pytest
 from configurations import random_sequential_addition
 
 from calippso import StopReason, jam
-from calippso.newton import refine_isostatic
-from calippso.sparse_lu import pardiso_available
+from calippso.certification.newton import refine_isostatic
+from calippso.certification.sparse_lu import pardiso_available
 from calippso.packing import minimum_image
 
 
@@ -88,7 +88,7 @@ def test_a_round_off_force_does_not_certify():
     network, with one force 1e-13 of the mean, before this rule)."""
     from dataclasses import replace
 
-    from calippso.newton import MIN_FORCE_RATIO, Refinement
+    from calippso.certification.newton import MIN_FORCE_RATIO, Refinement
 
     refinement = Refinement(positions=np.zeros((3, 2)), diameters=np.ones(3),
                             forces=np.array([1.0, 0.5, 2.0]), iterations=1, factorizations=1,
@@ -102,7 +102,7 @@ def test_a_round_off_force_does_not_certify():
 @pytest.mark.skipif(not pardiso_available(), reason="pypardiso (the pardiso extra) is absent")
 def test_pardiso_and_superlu_give_the_same_jamming_point(jammed, monkeypatch):
     """The Newton stage with PARDISO (taken from `PARDISO_MIN_UNKNOWNS` on) and with SuperLU."""
-    import calippso.sparse_lu as sparse_lu
+    import calippso.certification.sparse_lu as sparse_lu
 
     _, result = jammed
     packing = result.packing
@@ -137,7 +137,7 @@ def test_corrections_at_round_off_end_newton(jammed, monkeypatch):
     """Once the residual is at round-off, corrections stop shrinking (in a large network
     they stay above `STEP_TOLERANCE`): Newton ends there, at the jamming point, rather than
     failing. Here no correction can pass a zero step tolerance."""
-    import calippso.newton as newton
+    import calippso.certification.newton as newton
 
     monkeypatch.setattr(newton, "STEP_TOLERANCE", 0.0)
     _, result = jammed

@@ -1,4 +1,4 @@
-"""Contact pivots (`calippso.pivots`): from an isostatic network a few contacts off to the
+"""Contact pivots (`calippso.certification.pivots`): from an isostatic network a few contacts off to the
 jamming point, on the exact geometry.
 
 The inputs are jammed packings whose network has k contacts swapped for near pairs: the
@@ -14,8 +14,8 @@ import pytest
 
 from calippso import JammingError, Packing, StopReason, jam
 from calippso.neighbors import NeighborSearch
-from calippso.newton import refine_isostatic
-from calippso.pivots import DEGENERATE_STEP, pivot_to_jamming
+from calippso.certification.newton import refine_isostatic
+from calippso.certification.pivots import DEGENERATE_STEP, pivot_to_jamming
 from calippso.rattlers import remove_rattlers
 
 import lattices
@@ -273,7 +273,7 @@ def test_a_release_that_leaves_a_singular_network_gives_way_to_the_next(source, 
     """When the most negative contact's release leaves a singular network (simulated: its
     floppy mode is refused), the next non-positive contact leaves instead, and the path
     still reaches a certified jamming point."""
-    from calippso.pivots import path as pivot_path
+    from calippso.certification.pivots import path as pivot_path
 
     positions, diameters, box = in_mean_diameters(source.packing)
     for network in swapped_networks(source, 2, wanted=2) + swapped_networks(source, 3,
@@ -303,7 +303,7 @@ def test_network_first_stops_when_its_pivot_budget_is_spent(source, monkeypatch)
     """The stage's pivots share one budget (`STAGE_PIVOTS`). A hint whose path needs p
     pivots is certified with a budget of p; with p − 1 the stage refuses it, naming the
     budget, and the LP loop certifies the input instead."""
-    from calippso.stages import network_first as stage
+    from calippso.stages import network_first_stage as stage
 
     positions, diameters, box = in_mean_diameters(source.packing)
     network = swapped_networks(source, 3, wanted=1)[0]

@@ -1,4 +1,4 @@
-"""A singular network (`calippso.pivots`, the repair of a singular network): isostatic by
+"""A singular network (`calippso.certification.pivots`, the repair of a singular network): isostatic by
 count, singular by rank.
 
 The inputs are made from a jammed packing: a particle p with d + 1 contacts keeps only d − 1
@@ -23,9 +23,9 @@ import scipy.sparse as sp
 
 from calippso import Packing
 from calippso.neighbors import NeighborSearch
-from calippso.newton import Refinement, network_jacobian, refine_isostatic
+from calippso.certification.newton import Refinement, network_jacobian, refine_isostatic
 from calippso.packing import minimum_image
-from calippso.pivots import describe_path, pivot_to_jamming, singular_vectors
+from calippso.certification.pivots import describe_path, pivot_to_jamming, singular_vectors
 
 from conftest import BALANCE_TOLERANCE, assert_jammed
 from test_pivots import certified_again, in_mean_diameters, same_network, vertex_touching
@@ -284,7 +284,8 @@ def test_network_first_hands_a_network_newton_refuses_to_the_pivots(source, monk
     A real singular network of network first keeps every particle on d + 1 contacts or more
     (fewer make it a rattler there), which needs a floppy cluster of four particles in
     d = 3, rare in packings this small: the repair itself is tested above, from the pivots."""
-    from calippso import StopReason, jam, network_first
+    from calippso import StopReason, jam
+    from calippso.certification import network_first
     from test_pivots import swapped_networks
 
     positions, diameters, box = in_mean_diameters(source.packing)

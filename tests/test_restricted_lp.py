@@ -1,4 +1,4 @@
-"""The LP restricted to candidate pairs (`calippso.restricted_lp`): which contacts stay closed."""
+"""The LP restricted to candidate pairs (`calippso.certification.restricted_lp`): which contacts stay closed."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from configurations import random_sequential_addition
 
 from calippso import jam
 from calippso.neighbors import NeighborSearch
-from calippso.restricted_lp import MAX_OPEN_CONTACTS, TOO_FEW, TOO_MANY, lp_network
+from calippso.certification.restricted_lp import MAX_OPEN_CONTACTS, TOO_FEW, TOO_MANY, lp_network
 
 
 @pytest.fixture(scope="module")

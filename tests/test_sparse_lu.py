@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from calippso.sparse_lu import factorize, pardiso_available
+from calippso.certification.sparse_lu import factorize, pardiso_available
 
 METHODS = ["superlu", pytest.param("pardiso", marks=pytest.mark.skipif(
     not pardiso_available(), reason="pypardiso (the pardiso extra) is not installed"))]

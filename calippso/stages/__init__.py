@@ -5,7 +5,8 @@ solver policy) and the loop's state (`LoopState`, a frozen value) that returns t
 and what the stage found; each adds its records and notes to the run's history.
 
 - `state`: `Run` and `LoopState`.
-- `network_first`: the input's own contact network, certified with no LP.
+- `network_first_stage`: the input's own contact network, certified with no LP
+  (`calippso.certification`).
 - `lp_step`: one LP (bound, solve, update, re-solve with left-out rows that overlap) and the
   convergence test.
 - `wall_kick`: a hypostatic network between walls moved out of its layers.

@@ -17,7 +17,7 @@ from ..contacts import isostaticity_gap
 from ..history import StopReason, status_sentence
 from ..network import (ContactNetwork, network_balance, polished_forces,
                        remove_roundoff_overlaps, touching_network)
-from ..newton import pinned_coordinates
+from ..certification.newton import pinned_coordinates
 from ..packing import Packing
 from ..result import JammingResult
 from ..touching import TOUCHING_GAP, Touching, touching_outside_network

@@ -4,7 +4,7 @@
 the certificate of `calippso.network.certify_network` (positive forces, no other overlap, a
 non-singular Jacobian). `newton_or_pivots` is the stage of the LP loop: with
 ``crossover="off"``, a network refused only for non-positive forces is taken to the jamming
-point by contact pivots (`calippso.pivots`) and certified there.
+point by contact pivots (`calippso.certification.pivots`) and certified there.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..network import ContactNetwork, certify_network
-from ..newton import MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, refine_isostatic
-from ..pivots import PivotPath, describe_path, pivot_to_jamming
+from ..certification.newton import MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, refine_isostatic
+from ..certification.pivots import PivotPath, describe_path, pivot_to_jamming
 from .state import LoopState, Run
 
 __all__ = ["NewtonOutcome", "newton", "newton_or_pivots", "record_pivots", "TRIED_BEFORE",

@@ -34,10 +34,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .boundaries import Boundaries
-from .packing import minimum_image, wrap
+from ..boundaries import Boundaries
+from ..packing import minimum_image, wrap
 from .sparse_lu import Factors, factorize
-from .walls import wall_rows_of
+from ..walls import wall_rows_of
 
 __all__ = ["Refinement", "refine_isostatic", "NEWTON_FAILED", "contact_jacobian",
            "network_jacobian", "pinned_coordinates", "contact_equations_jacobian",
@@ -95,7 +95,7 @@ class Refinement:
         max_c | |r_c|²/σ_c² − Γ | at the end.
     factorization : (Factors, scipy.sparse.csc_matrix) or None
         The last sparse LU made and the Jacobian it factorises (near the solution), for
-        solves that follow (`calippso.pivots`); None when every step used given factors.
+        solves that follow (`calippso.certification.pivots`); None when every step used given factors.
     wall_forces : ndarray, shape (K,)
         Forces of the wall contacts, in the order given, in the units of `forces`; empty
         without walls.

@@ -88,7 +88,7 @@ class PivotPath:
         (why is returned beside it) at this vertex, no lower in Γ than its start.
     closed : tuple of (int, int)
         The pairs that closed the floppy modes of a hypostatic start before the first pivot
-        (`calippso.floppy_modes`), in order; empty when the start was isostatic.
+        (`calippso.certification.floppy_modes`), in order; empty when the start was isostatic.
     """
 
     i: np.ndarray

@@ -14,7 +14,7 @@ configuration (centres x → F x + u, box vectors H → F H), and the next one i
 there, so that the Jacobian always has the LP's own rows: 2 r/σ² on u_i, −2 r/σ² on u_j,
 2 rᵀ ε r/σ² on the strain, −1 on Γ.
 
-The answer is certified as the fixed box's Newton stage certifies it (`calippso.newton`):
+The answer is certified as the fixed box's Newton stage certifies it (`calippso.certification.newton`):
 the self-stress y solving Jᵀ y = (0, …, 0, −1) gives the LP's multipliers at the new point.
 Its rows on u say that the forces balance on every stable particle, its rows on the strain
 that their stress is isotropic, and y > 0 on every contact makes them dual feasible: with
@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from .newton import (CHORD_CONTRACTION, MAX_CORRECTION, MAX_ITERATIONS, MIN_FORCE_RATIO,
                      RESIDUAL_TOLERANCE, ROUNDOFF_RESIDUAL, STEP_TOLERANCE,
                      contact_equations_jacobian, free_columns, self_stress)
-from .periodic import lattice_wrap
+from ..periodic import lattice_wrap
 from .sparse_lu import factorize
 
 __all__ = ["StrictRefinement", "refine_strict", "strict_unknowns"]
@@ -79,7 +79,7 @@ class StrictRefinement:
 
     @property
     def positive(self) -> bool:
-        """Every force is positive, above `calippso.newton.MIN_FORCE_RATIO` × the largest."""
+        """Every force is positive, above `calippso.certification.newton.MIN_FORCE_RATIO` × the largest."""
         return bool(self.forces.size == 0
                     or self.forces.min() > MIN_FORCE_RATIO * self.forces.max())
 
@@ -115,7 +115,7 @@ def _strain_of(variables: np.ndarray, d: int) -> np.ndarray:
 def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_cols: np.ndarray,
               j_cols: np.ndarray, n_moves: int) -> sp.csc_matrix:
     """Jacobian of |r_c|²/σ_c² − Γ at the current configuration (module docstring), shape
-    (M, n_moves + d(d+1)/2): the fixed box's columns (`calippso.newton`; `i_cols`, `j_cols`
+    (M, n_moves + d(d+1)/2): the fixed box's columns (`calippso.certification.newton`; `i_cols`, `j_cols`
     (M, d) hold the displacement columns, −1 for the pinned particle) with the strain's
     2 rᵀ ε r/σ² between the displacements and Γ."""
     m = vectors.shape[0]
@@ -135,8 +135,8 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
     """Solve the strict contact equations of a network and compute its forces.
 
     Chord steps: the Jacobian is factorised at the start and reused while the corrections
-    shrink by `calippso.newton.CHORD_CONTRACTION` per step, factorised again otherwise (the
-    fixed box's `calippso.newton.refine_isostatic` does the same).
+    shrink by `calippso.certification.newton.CHORD_CONTRACTION` per step, factorised again otherwise (the
+    fixed box's `calippso.certification.newton.refine_isostatic` does the same).
 
     Parameters
     ----------

@@ -3,7 +3,7 @@
 A network C of M contacts between N_s stable particles with M = d (N_s − 1) + 1 − F, F > 0
 (a quench stopped early, a hint that misses contacts), leaves an F-dimensional family of
 motions that keep every contact closed. Γ grows along them until pairs outside C close, one
-per floppy mode, and then the network is isostatic and `calippso.pivots` takes over. Each
+per floppy mode, and then the network is isostatic and `calippso.certification.pivots` takes over. Each
 closure:
 
 1. **Direction.** The least displacement t with dΓ = 1 that keeps every contact closed,
@@ -20,7 +20,7 @@ closure:
 3. **Correct.** C' = C ∪ {k}. From the predicted point x + δ t, least-norm Gauss–Newton
    steps with the same kind of system bring every contact of C' back to contact at the
    inflation 1 + δ; the last closure (C' isostatic) is solved by Newton with Γ free
-   (`calippso.newton.refine_isostatic`), which also gives its forces. The point is kept when
+   (`calippso.certification.newton.refine_isostatic`), which also gives its forces. The point is kept when
    no other pair overlaps there and the rattlers can be cleared of their cages; otherwise
    the next pair of the ratio test is tried.
 
@@ -38,15 +38,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
-from .contacts import isostaticity_gap
-from .neighbors import NeighborSearch
-from .network import NEWTON_OVERLAP_TOLERANCE
+from ..contacts import isostaticity_gap
+from ..neighbors import NeighborSearch
+from ..network import NEWTON_OVERLAP_TOLERANCE
 from .newton import Refinement, network_jacobian, refine_isostatic
-from .packing import minimum_image
+from ..packing import minimum_image
 from .pivots.geometry import (NEAR_GAP, RATIO_CANDIDATES, clear_rattlers, find_closing_pairs,
                               least_norm_solve, onto_contacts, outside_pairs)
 from .pivots.vertex import DEGENERATE_STEP
-from .rattlers import remove_rattlers
+from ..rattlers import remove_rattlers
 
 __all__ = ["Closure", "close_floppy_modes", "MAX_CLOSURES"]
 
@@ -67,7 +67,7 @@ class Closure:
     rattlers : ndarray, shape (N,), bool
     refinement : Refinement
         The Newton point of the network (positions, diameters σ √Γ, forces; its forces need
-        not be positive: `calippso.pivots` starts there).
+        not be positive: `calippso.certification.pivots` starts there).
     closed : tuple of (int, int)
         The pairs that closed, in order.
     seconds : float

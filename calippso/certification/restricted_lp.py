@@ -8,7 +8,7 @@ the next LP of the loop would tell: at its optimum only the contacts with a posi
 stay closed. That LP, with no step bound and only the candidate pairs as rows, is solved
 here through its dual, without a sparse LP solver.
 
-In the variables of the Newton stage (`calippso.newton`: positions and Γ, the contact
+In the variables of the Newton stage (`calippso.certification.newton`: positions and Γ, the contact
 Jacobian J, shape (M, n) with n = d (N_s − 1) + 1 unknowns and M = n + k rows), the dual of
 the restricted LP reads
 
@@ -18,7 +18,7 @@ where y_c = μ_c σ_c² / (2 |r_c|) is the LP multiplier μ_c of contact c resca
 `calippso.lp` are the rows of J times σ_c² / (2 |r_c|)), and Σ_c y_c = 1. Its feasible
 set has dimension k only. With a basis B of n rows whose square block J_B is non-singular,
 every feasible y is y_p + Z λ: y_p = (J_B⁻ᵀ b, 0) and one column of Z per excess row e,
-(−J_B⁻ᵀ J_eᵀ, 1 at e). One sparse LU of J_B (`calippso.sparse_lu`) and k + 1 solves turn
+(−J_B⁻ᵀ J_eᵀ, 1 at e). One sparse LU of J_B (`calippso.certification.sparse_lu`) and k + 1 solves turn
 the problem into a dense LP in k variables, which HiGHS solves by cutting planes (only the
 rows that can reach zero). At its
 vertex, k rows have y = 0: those contacts open, and the others form an isostatic network
@@ -32,8 +32,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
-from .contacts import isostaticity_gap, remove_rattlers
-from .neighbors import Pairs
+from ..contacts import isostaticity_gap, remove_rattlers
+from ..neighbors import Pairs
 from .newton import network_jacobian
 from .sparse_lu import factorize
 

@@ -1,9 +1,9 @@
 """The network-first stage: the input's own contact network, certified with no LP.
 
-Candidates come from `calippso.network_guess` in a periodic box (the hint first, then the
-gap spectrum) and from `calippso.container_guess` in a container (pairs and wall contacts
+Candidates come from `calippso.certification.network_guess` in a periodic box (the hint first, then the
+gap spectrum) and from `calippso.certification.container_guess` in a container (pairs and wall contacts
 read from their gaps). At most `MAX_NETWORK_GUESSES` are tried: a periodic candidate is
-settled first (`calippso.network_first.settle_candidate`: restricted LP, Newton and contact
+settled first (`calippso.certification.network_first.settle_candidate`: restricted LP, Newton and contact
 pivots, a few rounds; all candidates share one budget of `STAGE_PIVOTS` pivots), then each
 goes to the Newton stage's certificate. Each candidate adds
 a history record (stage "guess"), a certified one also the pivot and Newton records; the
@@ -22,12 +22,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..container_guess import container_candidates
+from ..certification.container_guess import container_candidates
 from ..history import StopReason
 from ..network import ContactNetwork, network_key
-from ..network_first import STAGE_PIVOTS, PivotBudget, SettledNetwork, settle_candidate
-from ..network_guess import Candidate, candidate_networks
-from ..newton import Refinement
+from ..certification.network_first import STAGE_PIVOTS, PivotBudget, SettledNetwork, settle_candidate
+from ..certification.network_guess import Candidate, candidate_networks
+from ..certification.newton import Refinement
 from ..rattlers import remove_rattlers, separate_rattlers
 from .newton_stage import newton, record_pivots
 from .state import LoopState, Run
@@ -133,7 +133,7 @@ def fallback_start(run: Run, state: LoopState, reached: Refinement,
     reached : Refinement
         The jamming point of the last network the candidate's rounds solved.
     near_gap : float
-        The candidate's `calippso.network_guess.Candidate.near_gap`.
+        The candidate's `calippso.certification.network_guess.Candidate.near_gap`.
     """
     positions, diameters = reached.positions, reached.diameters
     search = run.search(positions, diameters)
@@ -162,7 +162,7 @@ def fallback_start(run: Run, state: LoopState, reached: Refinement,
 
 def _in_a_container(run: Run, state: LoopState) -> tuple[LoopState, Certified | None]:
     """The stage in a container: isostatic networks of pairs and wall contacts read from the
-    gaps (`calippso.container_guess`), each certified by the Newton stage or refused."""
+    gaps (`calippso.certification.container_guess`), each certified by the Newton stage or refused."""
     start = time.perf_counter()
     candidates = container_candidates(state.search, run.boundaries)[:MAX_NETWORK_GUESSES]
     if not candidates:

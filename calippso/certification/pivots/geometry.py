@@ -14,12 +14,12 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from ..neighbors import NeighborSearch, Pairs
-from ..network import NEWTON_OVERLAP_TOLERANCE
+from ...neighbors import NeighborSearch, Pairs
+from ...network import NEWTON_OVERLAP_TOLERANCE
 from ..newton import (MAX_CORRECTION, MAX_ITERATIONS, MAX_REFINEMENTS, REFINEMENT_TOLERANCE,
                       RESIDUAL_TOLERANCE, STEP_TOLERANCE, Refinement, network_jacobian)
-from ..packing import minimum_image, wrap
-from ..rattlers import separate_rattlers
+from ...packing import minimum_image, wrap
+from ...rattlers import separate_rattlers
 from ..sparse_lu import Factors, factorize
 
 __all__ = ["find_closing_pairs", "closing_rates", "outside_pairs", "onto_contacts",
@@ -80,7 +80,7 @@ def refined_solve(matrix: sp.csr_matrix, factors: Factors, rhs: np.ndarray,
                   normwise: bool = False) -> np.ndarray | None:
     """The solution of matrix x = rhs from factors of a nearby matrix, by iterative
     refinement to a componentwise backward error of `REFINEMENT_TOLERANCE` (as
-    `calippso.newton` does for the forces); None when `MAX_REFINEMENTS` steps do not reach it.
+    `calippso.certification.newton` does for the forces); None when `MAX_REFINEMENTS` steps do not reach it.
 
     With `normwise`, the backward error is that of the largest row instead: for a solution
     that vanishes on most rows' support (a localised null vector), where those rows hold

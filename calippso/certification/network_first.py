@@ -1,21 +1,21 @@
 """Settle a candidate network of a near-jammed input without a sparse LP: the restricted LP
 chooses the contacts, Newton solves them, and a few rounds repair what is off.
 
-Round 0 takes a candidate from `calippso.network_guess` (pairs that may be hyperstatic by a
+Round 0 takes a candidate from `calippso.certification.network_guess` (pairs that may be hyperstatic by a
 few, or a few pairs off the jammed network). When ``pivots`` is on, a candidate that is
 isostatic as it is (a hint that names exactly the contacts) goes straight to Newton and the
 pivots of step 4, and one that is hypostatic (a hint that misses contacts) first closes its
-floppy modes (`calippso.floppy_modes`). Each round
+floppy modes (`calippso.certification.floppy_modes`). Each round
 
 1. keeps the candidate pairs with a positive multiplier at the optimum of the CALiPPSO LP
-   restricted to them (`calippso.restricted_lp`): an isostatic network;
-2. solves its contact equations by Newton (`calippso.newton`), from the input in the
+   restricted to them (`calippso.certification.restricted_lp`): an isostatic network;
+2. solves its contact equations by Newton (`calippso.certification.newton`), from the input in the
    first round and from the previous round's jamming point after that (a hypostatic
    network, with ``pivots``, closes its floppy modes first);
 3. accepts the network when every force is positive and no other pair of stable particles
    overlaps at that jamming point;
 4. when no other pair overlaps but some forces are not positive, and ``pivots`` is on,
-   follows the contact pivots of `calippso.pivots` from that point: each releases one such
+   follows the contact pivots of `calippso.certification.pivots` from that point: each releases one such
    contact and closes the next pair on the exact geometry, until every force is positive.
    A network that Newton cannot solve because its Jacobian is singular (isostatic by count,
    a floppy cluster balanced by a redundant contact) is repaired by the pivots first: they
@@ -26,7 +26,7 @@ linearised there, chooses again.
 
 When the candidate pairs cannot hold a positive self-stress (the restricted LP is
 unbounded), a pair that must close is missing: the round reads the pairs `WIDENING` times
-farther from contact instead (never beyond `calippso.network_guess.CANDIDATE_GAP`).
+farther from contact instead (never beyond `calippso.certification.network_guess.CANDIDATE_GAP`).
 
 The pivots of all rounds (and of all the candidates the stage tries) share one budget,
 `STAGE_PIVOTS`: a network that needs more is too far off for one contact at a time.
@@ -42,12 +42,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .contacts import isostaticity_gap, remove_rattlers
-from .neighbors import NeighborSearch, Pairs
+from ..contacts import isostaticity_gap, remove_rattlers
+from ..neighbors import NeighborSearch, Pairs
 from .floppy_modes import close_floppy_modes
 from .network_guess import CANDIDATE_GAP, Candidate
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
-from .packing import minimum_image
+from ..packing import minimum_image
 from .pivots import PivotPath, pivot_to_jamming
 from .restricted_lp import TOO_FEW, lp_network
 
@@ -148,7 +148,7 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         Dimension.
     pivots : bool
         Follow contact pivots from a round's network whose jamming point has non-positive
-        forces and no overlap (`calippso.pivots`), before another round.
+        forces and no overlap (`calippso.certification.pivots`), before another round.
     budget : PivotBudget, optional
         The pivots allowed (spent as they are taken); a fresh `STAGE_PIVOTS` when omitted.
         A candidate is refused once the budget is spent and its network is not settled.
@@ -252,7 +252,7 @@ def _isostaticity_gap(pairs: Pairs, n: int, d: int) -> int:
 def _solvable_as_it_is(pairs: Pairs, n: int, d: int) -> bool:
     """Whether the pairs need no choice by the restricted LP: an isostatic network as they are
     (no pair of a rattler), or a hypostatic one once its rattlers leave (its floppy modes
-    close, `calippso.floppy_modes`)."""
+    close, `calippso.certification.floppy_modes`)."""
     rattlers, kept = remove_rattlers(n, d, pairs.i, pairs.j)
     gap = isostaticity_gap(int(kept.sum()), int(n - rattlers.sum()), d)
     return gap < 0 or (gap == 0 and bool(kept.all()))

@@ -4,7 +4,7 @@ Close to a jamming point the contacts are the pairs with the smallest relative g
 h = |r|/σ − 1: they sit within the distance to the jamming point (~1e-7 for a slightly
 perturbed jammed packing), the next pairs usually orders of magnitude further, beyond the
 largest jump of the sorted gaps. After recursive rattler removal the contacts form an
-isostatic network, N_c = d (N_s − 1) + 1, and the Newton stage (`calippso.newton`) can prove
+isostatic network, N_c = d (N_s − 1) + 1, and the Newton stage (`calippso.certification.newton`) can prove
 its jamming point with no LP. The candidates, in order: a network handed over by the caller
 (a hint, e.g. the overlap network of a soft-sphere quench) together with the pairs nearly as
 close as its farthest contact; the fewest closest pairs that make an isostatic network, when
@@ -12,7 +12,7 @@ they all lie within `NEAR_CONTACT_GAP` of contact (in d = 5 the gaps above the c
 smoothly, with no clear jump); the pairs below the largest jumps of the sorted gaps.
 
 A candidate may hold a few pairs too many (hyperstatic) or be a few pairs off the jammed
-network: `calippso.network_first` settles it with the LP restricted to its pairs and the
+network: `calippso.certification.network_first` settles it with the LP restricted to its pairs and the
 Newton stage, and the certificate decides.
 """
 
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import isostaticity_gap, remove_rattlers
-from .neighbors import NeighborSearch, Pairs
+from ..contacts import isostaticity_gap, remove_rattlers
+from ..neighbors import NeighborSearch, Pairs
 from .floppy_modes import MAX_CLOSURES
 from .restricted_lp import MAX_OPEN_CONTACTS
 
@@ -54,8 +54,8 @@ NEAR_PAIR_FACTOR = 32.0
 #: A candidate read from the gap spectrum that is hyperstatic by more than this many contacts
 #: is not tried: such a network is a crystal or a compressed state, not a jamming point with
 #: a few near-contacts. (A hint is tried whatever its excess, up to the limit of
-#: `calippso.restricted_lp`, and when it misses contacts, up to the floppy modes that
-#: `calippso.floppy_modes` closes.)
+#: `calippso.certification.restricted_lp`, and when it misses contacts, up to the floppy modes that
+#: `calippso.certification.floppy_modes` closes.)
 MAX_EXCESS_CONTACTS = 12
 
 
@@ -123,7 +123,7 @@ def candidate_networks(search: NeighborSearch, d: int,
     list of Candidate
         Distinct candidates that are neither hypostatic after rattler removal nor
         hyperstatic by more than `MAX_EXCESS_CONTACTS` when read from the gap spectrum (a
-        hint may miss up to `calippso.floppy_modes.MAX_CLOSURES` contacts): the hint's; the
+        hint may miss up to `calippso.certification.floppy_modes.MAX_CLOSURES` contacts): the hint's; the
         fewest closest pairs that make an isostatic network, if all their gaps are below
         `NEAR_CONTACT_GAP`; then one per split of the gap spectrum (the `SPLITS_TRIED`
         largest jumps). Empty when nothing qualifies.

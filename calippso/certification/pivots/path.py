@@ -10,12 +10,12 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from ..neighbors import NeighborSearch
-from ..network import NEWTON_OVERLAP_TOLERANCE
+from ...neighbors import NeighborSearch
+from ...network import NEWTON_OVERLAP_TOLERANCE
 from ..newton import (MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, network_jacobian,
                       refine_isostatic)
-from ..packing import minimum_image
-from ..rattlers import remove_rattlers
+from ...packing import minimum_image
+from ...rattlers import remove_rattlers
 from ..sparse_lu import Factors, factorize
 from .geometry import (CAGE_GAP, NEAR_GAP, RATIO_CANDIDATES, closing_rates, find_closing_pairs,
                        outside_pairs, rattlers_out_of_the_way, refined_solve)
@@ -251,7 +251,7 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
 
 def _jacobian_at(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                  i: np.ndarray, j: np.ndarray, stable: np.ndarray) -> sp.csr_matrix:
-    """The contact Jacobian of network (i, j) at a configuration (`calippso.newton`)."""
+    """The contact Jacobian of network (i, j) at a configuration (`calippso.certification.newton`)."""
     vectors = minimum_image(positions[i] - positions[j], box)
     return network_jacobian(vectors, 0.5 * (diameters[i] + diameters[j]), i, j, stable)
 

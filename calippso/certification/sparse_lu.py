@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .c_stdout import c_stdout_to_stderr
+from ..c_stdout import c_stdout_to_stderr
 
 __all__ = ["Factors", "factorize", "pardiso_available", "PARDISO_MIN_UNKNOWNS"]
 

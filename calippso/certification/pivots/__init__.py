@@ -1,6 +1,6 @@
 """Contact pivots: an active-set path from a network that is a few contacts off to the jammed one.
 
-The start is an isostatic contact network C at its Newton point (`calippso.newton`): the
+The start is an isostatic contact network C at its Newton point (`calippso.certification.newton`): the
 contact equations |r_c|² = Γ σ_c² hold on C, no other pair of stable particles overlaps,
 and the forces y (the self-stress of Jᵀ y = (0, …, 0, −1)) are known, but some are not
 positive. The CALiPPSO LP at that point would move on; here the same move is made on the
@@ -45,7 +45,7 @@ with perturbed pivots, and its forces are not unique) is repaired the same way.
 the closing pair already touches); Bland's rule and a record of the networks seen since Γ
 last grew rule that out.
 
-One sparse LU (`calippso.sparse_lu`) serves many pivots: a pivot swaps one row of the
+One sparse LU (`calippso.certification.sparse_lu`) serves many pivots: a pivot swaps one row of the
 Jacobian, and solves with the swapped matrix use the stored factors and the Woodbury
 identity (`vertex.Basis`), refined iteratively against the exact matrix; the Jacobian is
 factorised again when 40 rows have been swapped, when the refinement does not reach

@@ -2,11 +2,11 @@
 
 The network-first stage in a container: the contacts of a near-jammed packing are the
 particle pairs and the particle–wall pairs with the smallest relative gaps, below the largest
-jump of their sorted gaps (`calippso.network_guess` reads pairs only, for periodic boxes).
+jump of their sorted gaps (`calippso.certification.network_guess` reads pairs only, for periodic boxes).
 Pair gaps h = |r|/σ − 1 and wall gaps δ/σ_w − 1 are ranked together. A candidate is the
 closest contacts up to such a jump, or the fewest closest that make an isostatic network
 (N_c = d N_s + 1 − zero modes, wall contacts counted) when they all lie within
-`calippso.network_guess.NEAR_CONTACT_GAP` of contact. Only candidates that are exactly
+`calippso.certification.network_guess.NEAR_CONTACT_GAP` of contact. Only candidates that are exactly
 isostatic after rattler removal are returned: `jam` hands each to the Newton stage
 (`calippso.network.certify_network`), whose certificate decides, and runs the LP loop when
 none is certified.
@@ -18,13 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .boundaries import Boundaries
-from .contacts import isostaticity_gap
-from .neighbors import NeighborSearch, Pairs
+from ..boundaries import Boundaries
+from ..contacts import isostaticity_gap
+from ..neighbors import NeighborSearch, Pairs
 from .network_guess import (CANDIDATE_GAP, NEAR_CONTACT_GAP, fewest_not_hypostatic,
                             gap_splits)
-from .rattlers import remove_rattlers
-from .walls import WallRows, wall_rows_within
+from ..rattlers import remove_rattlers
+from ..walls import WallRows, wall_rows_within
 
 __all__ = ["ContainerCandidate", "container_candidates"]
 
