@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from calippso import Boundaries, Packing
-from calippso.packing import ball_volume
+from calippso.geometry.packing import ball_volume
 
 __all__ = ["random_sequential_addition"]
 

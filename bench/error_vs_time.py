@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 import calippso
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 
 DEFAULT_TOLERANCES = ["1e-5:1e-3", "1e-7:1e-5", "1e-9:1e-7", "1e-12:1e-9"]
 ERRORS = {"min_gap_abs": "|min gap|", "force_balance": "force balance",

@@ -44,9 +44,9 @@ import calippso
 from calippso.complementarity import read_complementarity
 from calippso.ilp import initial_step_bound, median_gap
 from calippso.lp import build_lp, select_pairs
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 from calippso.certification.newton import MIN_FORCE_RATIO, pinned_coordinates, refine_isostatic
-from calippso.packing import Packing, wrap
+from calippso.geometry.packing import Packing, wrap
 from calippso.settings import JamSettings
 from calippso.solvers.highs import (HighsOptions, _interior_solution, _quiet_highs,
                                     interior_point_for)

@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 import calippso
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 from calippso.certification.newton import refine_isostatic
 from calippso.certification.pivots import pivot_to_jamming
-from calippso.rattlers import remove_rattlers
+from calippso.geometry.rattlers import remove_rattlers
 
 #: Nearest non-contacts from which the swaps are drawn.
 SWAP_POOL = 24

@@ -90,7 +90,7 @@ def displacement_spread(packing: calippso.Packing, result: calippso.JammingResul
     """Quantiles (`QUANTILES`) of the particles' displacements from the input `packing`,
     and how many particles moved further than each of `FAR`, the farthest one a rattler or
     not (mean diameters of the input)."""
-    from calippso.periodic import displacements
+    from calippso.geometry.periodic import displacements
 
     lengths, _ = displacements(packing.positions, result.packing.positions, packing.box,
                                packing.periodic)

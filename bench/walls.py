@@ -34,7 +34,7 @@ import numpy as np
 
 import calippso
 from calippso import Boundaries
-from calippso.packing import ball_volume
+from calippso.geometry.packing import ball_volume
 
 from common import random_sequential_addition
 

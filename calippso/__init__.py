@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import importlib
 
-from .boundaries import Boundaries
-from .packing import Packing
+from .geometry.boundaries import Boundaries
+from .geometry.packing import Packing
 
 __version__ = "0.1.0"
 

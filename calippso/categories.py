@@ -70,11 +70,11 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .neighbors import NeighborSearch
-from .packing import Packing, minimum_image
-from .rattlers import remove_rattlers
-from .sheared_search import sheared_pairs_within
-from .walls import wall_rows_of, wall_rows_within
+from .geometry.neighbors import NeighborSearch
+from .geometry.packing import Packing, minimum_image
+from .geometry.rattlers import remove_rattlers
+from .geometry.sheared_search import sheared_pairs_within
+from .geometry.walls import wall_rows_of, wall_rows_within
 
 __all__ = ["jamming_category", "JammingCategory", "ClassTest", "CATEGORIES", "CLASSES",
            "DEFAULT_CONTACT_TOLERANCE", "AMBIGUITY_WINDOW"]
@@ -173,7 +173,7 @@ class JammingCategory:
     contacts : ndarray, shape (M, 2), int64
         The contacts tested, pairs (i < j) of stable particles.
     wall_contacts : ndarray, shape (K, 2), int64
-        Their contacts with walls, (particle, wall) as in `calippso.walls`.
+        Their contacts with walls, (particle, wall) as in `calippso.geometry.walls`.
     rattlers : ndarray, shape (N,), bool
         The particles removed (fewer than d + 1 contacts, recursively).
     contact_tolerance : float or None
@@ -705,8 +705,8 @@ def _one_particle(motion: np.ndarray, d: int) -> np.ndarray:
 
 def _balance(network: _Network, forces: np.ndarray, wall_forces: np.ndarray) -> float:
     """max over stable particles of |Σ f n| (forces of mean 1)."""
-    from .contacts import net_forces
-    from .walls import wall_net_forces
+    from .geometry.contacts import net_forces
+    from .geometry.walls import wall_net_forces
 
     # net_forces takes the normal from j to i: −n_k here
     total = net_forces(network.n, network.i, network.j, -network.normals, forces)

@@ -49,23 +49,23 @@ import scipy.sparse as sp
 from scipy.optimize import linprog
 from scipy.sparse.linalg import lsmr
 
-from .contacts import contact_mask, force_balance, isostaticity_gap
+from .geometry.contacts import contact_mask, force_balance, isostaticity_gap
 from .errors import JammingError
 from .history import History, StopReason, status_sentence
 from .lp import LinearProgram
-from .neighbors import Pairs
+from .geometry.neighbors import Pairs
 from .network import GEOMETRIC_CONTACT_GAP, NEWTON_OVERLAP_TOLERANCE, ROUNDOFF_SHRINK_MARGIN
-from .packing import Packing
-from .periodic import lattice_minimum_image, lattice_wrap
-from .rattlers import remove_rattlers
+from .geometry.packing import Packing
+from .geometry.periodic import lattice_minimum_image, lattice_wrap
+from .geometry.rattlers import remove_rattlers
 from .result import JammingResult
 from .settings import JamSettings
-from .sheared_search import half_shortest_vector, sheared_pairs_within
+from .geometry.sheared_search import half_shortest_vector, sheared_pairs_within
 from .solvers.policy import LPFailed, SolverPolicy, next_warm_start
 from .stages.lp_step import VANISHING_STEP_FRACTION
 from .step import BINDING_REDUCED_COST, at_bound
 from .certification.strict_newton import StrictRefinement, refine_strict, strict_unknowns
-from .walls import EMPTY_WALLS
+from .geometry.walls import EMPTY_WALLS
 
 __all__ = ["jam_deformable", "strain_count", "strict_zero_modes", "strain_matrix",
            "strain_coefficients", "DEFORMABLE_NOTE"]
@@ -114,7 +114,7 @@ def strain_count(d: int) -> int:
 
 
 def strict_zero_modes(d: int) -> int:
-    """The 'zero modes' that make `calippso.contacts.isostaticity_gap` count a strictly
+    """The 'zero modes' that make `calippso.geometry.contacts.isostaticity_gap` count a strictly
     isostatic network, N_c = d (N_s − 1) + d(d+1)/2: the d translations less the
     d(d+1)/2 − 1 degrees of freedom of a box whose volume does not grow (docs/theory.md)."""
     return d + 1 - strain_count(d)
@@ -633,7 +633,7 @@ def _strict_test(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.ndar
                      "floppy mode of the strict rows")
         return "strict"
     from .categories import jamming_category
-    from .touching import touching_outside_network
+    from .geometry.touching import touching_outside_network
 
     contacts = np.stack([i, j], axis=1)
     touching = touching_outside_network(packing, contacts, rattlers)

@@ -18,7 +18,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from .contacts import isostaticity_gap
+from .geometry.contacts import isostaticity_gap
 
 __all__ = ["StopReason", "Record", "History", "HISTORY_COLUMNS", "HISTORY_DTYPE",
            "empty_history", "history_from_records", "status_sentence", "reason_from_status",

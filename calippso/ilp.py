@@ -30,15 +30,15 @@ from typing import Callable
 
 import numpy as np
 
-from .boundaries import Boundaries
+from .geometry.boundaries import Boundaries
 from .checkpoint import Checkpoint
 from .history import History, StopReason
 from .inputs import as_packing, check_enough_particles, check_input_overlaps
-from .neighbors import NeighborSearch
+from .geometry.neighbors import NeighborSearch
 from .network import ContactNetwork
 from .certification.network_guess import check_network_hint
 from .certification.newton import pinned_coordinates
-from .packing import Packing, wrap
+from .geometry.packing import Packing, wrap
 from .result import JammingResult
 from .routes import jam_by_route
 from .settings import JamSettings

@@ -1,6 +1,6 @@
 """Checks of a configuration given to `calippso.jam` (and to `calippso.protocols.precompress`).
 
-`Packing` itself validates shapes, values and sizes (`calippso.packing`); a network hint is
+`Packing` itself validates shapes, values and sizes (`calippso.geometry.packing`); a network hint is
 checked by `calippso.certification.network_guess.check_network_hint`. What is left is checked here: how the
 configuration is passed, whether it has enough particles to jam, and whether its particles
 are apart. Every check raises with a message that names the bad argument and what was
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .neighbors import SAME_PLACE, NeighborSearch, check_no_duplicates
-from .packing import Packing
+from .geometry.neighbors import SAME_PLACE, NeighborSearch, check_no_duplicates
+from .geometry.packing import Packing
 
 __all__ = ["as_packing", "check_enough_particles", "check_input_overlaps"]
 

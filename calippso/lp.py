@@ -15,7 +15,7 @@ Which rows are kept. Any pair p bounds the LP optimum: Γ σ_p² ≤ |r_p|² + 2
 |r_ij| − 2√d b > g σ_ij can then never come into contact during the step, in exact arithmetic.
 Only pairs within g σ_ij + 2√d b are kept; the loop still checks every pair after each update.
 
-Container walls (`calippso.walls`) add one row per particle within g σ_i/2 + b of a flat
+Container walls (`calippso.geometry.walls`) add one row per particle within g σ_i/2 + b of a flat
 wall (the displacement towards it is one component, at most b) or g σ_i/2 + √2 b of a
 cylinder, of the same form with the wall as a partner that does not move; a cylinder's row
 uses the distance δ − b²/ρ, which its curvature cannot undercut over the step.
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .neighbors import NeighborSearch, Pairs
-from .walls import EMPTY_WALLS, WallRows, empty_walls, wall_rows_within
+from .geometry.neighbors import NeighborSearch, Pairs
+from .geometry.walls import EMPTY_WALLS, WallRows, empty_walls, wall_rows_within
 
 __all__ = ["LinearProgram", "select_pairs", "select_walls", "build_lp"]
 
@@ -84,7 +84,7 @@ class LinearProgram:
     @property
     def gamma_coefficients(self) -> np.ndarray:
         """σ_ij²/(2|r_ij|) for every row (σ_w²/(2δ') for a wall row,
-        `calippso.walls.WallRows.row_distances`): the (negated)
+        `calippso.geometry.walls.WallRows.row_distances`): the (negated)
         coefficient of γ, shape (M + K,)."""
         coefficients = self.pairs.sigma**2 / (2.0 * self.pairs.distances)
         if not len(self.walls):
@@ -134,7 +134,7 @@ def select_walls(search: NeighborSearch, step_bound: float, boundaries) -> WallR
         Current positions and diameters (mean diameter 1).
     step_bound : float
         Bound b on each displacement component.
-    boundaries : calippso.boundaries.Boundaries
+    boundaries : calippso.geometry.boundaries.Boundaries
         The container.
     """
     if boundaries.is_periodic:
@@ -146,7 +146,7 @@ def select_walls(search: NeighborSearch, step_bound: float, boundaries) -> WallR
 def largest_safe_step(search: NeighborSearch, step_bound: float, boundaries=None) -> float:
     """The largest bound ≤ `step_bound` whose row selection stays below half the smallest
     periodic box side, and (in a cylinder) whose curvature margin b²/ρ leaves every
-    particle near the wall at least half its distance δ (`calippso.walls`).
+    particle near the wall at least half its distance δ (`calippso.geometry.walls`).
 
     Returns 0.0 when even a vanishing step would need pairs beyond half the box.
     """

@@ -20,12 +20,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .boundaries import Boundaries
-from .contacts import force_balance, isostaticity_gap, polish_forces, positive_self_stress
-from .neighbors import NEAR_CONTACT_SLACK, NeighborSearch, Pairs, shrink_to_margin
+from .geometry.boundaries import Boundaries
+from .geometry.contacts import force_balance, isostaticity_gap, polish_forces, positive_self_stress
+from .geometry.neighbors import NEAR_CONTACT_SLACK, NeighborSearch, Pairs, shrink_to_margin
 from .certification.newton import NEWTON_FAILED, Refinement, refine_isostatic
-from .rattlers import remove_rattlers, separate_rattlers
-from .walls import (WallRows, empty_walls, wall_equilibrium_columns, wall_ids, wall_rows_of,
+from .geometry.rattlers import remove_rattlers, separate_rattlers
+from .geometry.walls import (WallRows, empty_walls, wall_equilibrium_columns, wall_ids, wall_rows_of,
                     wall_rows_within)
 
 __all__ = ["ContactNetwork", "Certified", "RoundoffShrink", "network_key", "network_balance",
@@ -65,7 +65,7 @@ class ContactNetwork:
     from_lp : bool
         The network and forces are an LP's duals (a force clean-up LP can then repair them).
     wall_particle, wall : ndarray, shape (K,), int64
-        The contacts with flat walls: particle and wall (`calippso.walls`); empty in a
+        The contacts with flat walls: particle and wall (`calippso.geometry.walls`); empty in a
         periodic box.
     wall_forces : ndarray, shape (K,)
         Their force magnitudes, in the units of `forces`.
@@ -129,7 +129,7 @@ def network_balance(search: NeighborSearch, network: ContactNetwork,
 def _wall_part(search: NeighborSearch, network: ContactNetwork,
                boundaries: Boundaries | None) -> tuple | None:
     """(particle, inward normals, forces) of the network's wall contacts at the geometry of
-    `search` (`calippso.contacts.force_balance`), or None without any."""
+    `search` (`calippso.geometry.contacts.force_balance`), or None without any."""
     if network.walls is None:
         return None
     walls = _wall_geometry(search, network, boundaries)
@@ -211,7 +211,7 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
     Certified means: every force positive (wall contacts included) and no other pair
     overlapping, nor any other particle crossing a wall, beyond `NEWTON_OVERLAP_TOLERANCE`
     (see `calippso.certification.newton`). In a periodic box, rattlers that the moved cages now overlap are
-    first moved out of the way (`calippso.rattlers.separate_rattlers`). A `guessed` network
+    first moved out of the way (`calippso.geometry.rattlers.separate_rattlers`). A `guessed` network
     (not an LP's) must also be the whole contact network: another touching pair of stable
     particles, or a stable particle touching a wall outside the network (h <
     `GEOMETRIC_CONTACT_GAP`), means a degenerate (hyperstatic) packing, left to the LPs.
@@ -229,7 +229,7 @@ def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarra
     refined : Refinement, optional
         Newton's solution from `positions`, when already computed (`calippso.certification.network_first`).
     boundaries : Boundaries, optional
-        The box's boundaries (`calippso.boundaries`); None: periodic along every axis.
+        The box's boundaries (`calippso.geometry.boundaries`); None: periodic along every axis.
 
     Returns
     -------
@@ -314,7 +314,7 @@ def touching_network(search: NeighborSearch, network: ContactNetwork, balance: f
     self-stress near uniform forces that `positive_self_stress` finds, if there is one and
     it balances to `balance_tolerance`. Otherwise the LP network is kept. In a container
     (`boundaries`, default periodic), the particles touching a wall count too
-    (`calippso.walls`), and its zero modes enter the isostatic count.
+    (`calippso.geometry.walls`), and its zero modes enter the isostatic count.
 
     Returns
     -------
@@ -367,7 +367,7 @@ def polished_forces(search: NeighborSearch, network: ContactNetwork, balance: fl
     """Forces refined by least squares on the equilibrium equations, if that helps.
 
     Wall contacts (`ContactNetwork.walls`) are polished with the pair contacts, as further
-    columns of the equilibrium matrix (`calippso.walls.wall_equilibrium_columns`).
+    columns of the equilibrium matrix (`calippso.geometry.walls.wall_equilibrium_columns`).
 
     Returns
     -------
@@ -419,7 +419,7 @@ class RoundoffShrink:
 
 def remove_roundoff_overlaps(search: NeighborSearch,
                              boundaries: Boundaries | None = None) -> RoundoffShrink | None:
-    """The shrink that leaves no overlap (`calippso.neighbors.shrink_to_margin`, closest
+    """The shrink that leaves no overlap (`calippso.geometry.neighbors.shrink_to_margin`, closest
     pair `ROUNDOFF_SHRINK_MARGIN` apart), or None when no pair overlaps. In a container
     (`boundaries`), a particle crossing its wall counts as an overlap too."""
     close = search.pairs_near_contact()
@@ -441,7 +441,7 @@ def remove_roundoff_overlaps(search: NeighborSearch,
 
 def walls_near_contact(search: NeighborSearch, boundaries: Boundaries | None) -> WallRows:
     """Particle–wall pairs that touch, cross or nearly touch (δ ≤ σ_i/2 × (1 +
-    `NEAR_CONTACT_SLACK`)) the walls of the container `boundaries` (`calippso.walls`);
+    `NEAR_CONTACT_SLACK`)) the walls of the container `boundaries` (`calippso.geometry.walls`);
     none in a periodic box (None)."""
     if boundaries is None or boundaries.is_periodic:
         return empty_walls(search.d)

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .packing import Packing
+from .geometry.packing import Packing
 
 if TYPE_CHECKING:
     from generators import GenerationResult
@@ -170,7 +170,7 @@ def make_start(spec: EnsembleSpec, seed: int, *,
     """
     import generators
 
-    from .neighbors import contact_shrink
+    from .geometry.neighbors import contact_shrink
 
     sizes = make_diameters(spec.n, spec.distribution, ratio=spec.ratio, std=spec.std, seed=seed)
     if spec.protocol == "ls":
@@ -260,7 +260,7 @@ def _check_no_overlap(packing: Packing) -> None:
     """ValueError naming duplicated particles, or the worst pair if two particles overlap
     beyond `OVERLAP_TOLERANCE` (`calippso.inputs.check_input_overlaps`, as `jam` checks)."""
     from .inputs import check_input_overlaps
-    from .neighbors import NeighborSearch
+    from .geometry.neighbors import NeighborSearch
 
     scale = packing.mean_diameter
     check_input_overlaps(NeighborSearch(packing.positions / scale, packing.diameters / scale,

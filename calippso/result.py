@@ -37,7 +37,7 @@ category                    () str           jamming category of the final packi
 box_matrix                  (d, d) float64   box vectors as columns, upper triangular
 ==========================  ===============  ===============================================
 
-A packing with walls (`calippso.boundaries`) adds three keys; a periodic one has none of
+A packing with walls (`calippso.geometry.boundaries`) adds three keys; a periodic one has none of
 them, and a file without them is periodic:
 
 ==========================  ===============  ===============================================
@@ -62,9 +62,9 @@ import numpy as np
 from .atomic import save_npz_atomic
 from .history import (HISTORY_COLUMNS, HISTORY_DTYPE, StopReason, empty_history,
                       reason_from_status)
-from .boundaries import axis_name
-from .packing import Packing, packing_of
-from .touching import TOUCHING_GAP, Touching
+from .geometry.boundaries import axis_name
+from .geometry.packing import Packing, packing_of
+from .geometry.touching import TOUCHING_GAP, Touching
 
 __all__ = ["JammingResult", "load_result", "HISTORY_COLUMNS", "empty_history", "StopReason"]
 
@@ -119,7 +119,7 @@ class JammingResult:
         What the run repaired, retried or tried on the way (each a clause of `status`).
     wall_contacts : ndarray, shape (K, 2), int64
         Contacts of stable particles with the container's walls: (particle, wall), wall 2μ at
-        0 and 2μ + 1 at L_μ along axis μ, 2d for a cylinder (`calippso.walls`); empty in a
+        0 and 2μ + 1 at L_μ along axis μ, 2d for a cylinder (`calippso.geometry.walls`); empty in a
         periodic box.
     wall_forces : ndarray, shape (K,)
         Their force magnitudes, in the units of `forces` (all forces together have mean 1);
@@ -207,7 +207,7 @@ class JammingResult:
         """N_c − (d N_s + 1 − zero modes): zero for an isostatic packing. The zero modes are
         the d translations in a periodic box (N_c − d (N_s − 1) − 1), the translations along
         the periodic axes with walls (`Boundaries.zero_modes`)."""
-        from .contacts import isostaticity_gap
+        from .geometry.contacts import isostaticity_gap
 
         zero_modes = self.packing.boundaries.zero_modes
         if self.box_mode == "deformable":
@@ -228,7 +228,7 @@ class JammingResult:
         at L_μ (≥ 0); zeros for an axis without walls. In force balance the two entries of a
         row are equal and opposite. Units of `forces`.
         """
-        from .walls import wall_loads
+        from .geometry.walls import wall_loads
 
         return wall_loads(self.d, self.wall_contacts[:, 1], self.wall_forces)
 
@@ -250,7 +250,7 @@ class JammingResult:
         forces, units of `forces`); NaN without a cylinder."""
         if not self.packing.boundaries.cylinder_axes:
             return float("nan")
-        from .walls import cylinder_load
+        from .geometry.walls import cylinder_load
 
         return cylinder_load(self.d, self.wall_contacts[:, 1], self.wall_forces)
 
@@ -306,10 +306,10 @@ class JammingResult:
     @property
     def touching(self) -> "Touching":
         """Pairs that touch outside the contact network (relative gap at most
-        `calippso.touching.TOUCHING_GAP`): stable pairs and particle–wall pairs that carry
-        zero force in the certificate (`calippso.touching`). Counted as contacts, they would
+        `calippso.geometry.touching.TOUCHING_GAP`): stable pairs and particle–wall pairs that carry
+        zero force in the certificate (`calippso.geometry.touching`). Counted as contacts, they would
         raise the isostaticity gap by their number."""
-        from .touching import touching_outside_network
+        from .geometry.touching import touching_outside_network
 
         return touching_outside_network(self.packing, self.contacts, self.rattlers,
                                         self.wall_contacts)

@@ -32,8 +32,8 @@ from typing import Callable
 import numpy as np
 
 from .errors import JammingError
-from .packing import Packing
-from .periodic import displacements
+from .geometry.packing import Packing
+from .geometry.periodic import displacements
 from .result import JammingResult
 
 __all__ = ["ROUTES", "DEFAULT_MAX_DISPLACEMENT", "AUTO_MIN_PARTICLES", "EARLY_MAX_EXCESS",
@@ -98,8 +98,8 @@ def gap_spread(packing: Packing) -> tuple[int, float]:
         Decades between the gap of rank `SPREAD_FROM_RANK` × `count` and the gap of rank
         `count` (gaps below round-off count as round-off); inf when `count` is 0.
     """
-    from .contacts import isostaticity_gap, remove_rattlers
-    from .neighbors import NeighborSearch
+    from .geometry.contacts import isostaticity_gap, remove_rattlers
+    from .geometry.neighbors import NeighborSearch
     from .certification.network_guess import CANDIDATE_GAP, ROUNDOFF_GAP, fewest_not_hypostatic
 
     n, d = packing.n, packing.d

@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .complementarity import read_complementarity
-from .contacts import contact_mask, force_balance, isostaticity_gap
+from .geometry.contacts import contact_mask, force_balance, isostaticity_gap
 from .lp import LinearProgram
 from .network import ContactNetwork
-from .rattlers import remove_rattlers
+from .geometry.rattlers import remove_rattlers
 from .settings import JamSettings
 from .solvers import LPSolution
 

@@ -14,7 +14,7 @@ import argparse
 
 import calippso
 import generators
-from calippso.neighbors import contact_shrink
+from calippso.geometry.neighbors import contact_shrink
 
 
 def main(argv=None) -> None:

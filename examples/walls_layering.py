@@ -26,7 +26,7 @@ import calippso
 import generators
 from calippso import Boundaries
 from calippso.analysis import density_profile
-from calippso.neighbors import contact_shrink
+from calippso.geometry.neighbors import contact_shrink
 
 #: Bins of the printed profile and of the picture, in mean diameters.
 TABLE_BIN, PICTURE_BIN = 0.25, 0.05

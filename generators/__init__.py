@@ -12,8 +12,8 @@ walls (``boundaries=calippso.Boundaries.walls(d, axes)``) or in a cylinder
 both in one line. `poisson(diameters, d, *, phi, seed)` places
 random centres and returns the `calippso.Packing` itself; `relax(packing)` runs the soft
 quench from a given configuration, in its own box. The generators build only on
-calippso's geometry base (`calippso.packing`, `calippso.periodic`, `calippso.neighbors`,
-`calippso.atomic`, `calippso.checkpoint`, `calippso.boundaries`, and `calippso.rattlers` for
+calippso's geometry base (`calippso.geometry.packing`, `calippso.geometry.periodic`, `calippso.geometry.neighbors`,
+`calippso.atomic`, `calippso.checkpoint`, `calippso.geometry.boundaries`, and `calippso.geometry.rattlers` for
 the rattler rule); importing this package never imports an LP solver.
 """
 

@@ -73,9 +73,9 @@ def check_boundaries(boundaries, d: int, generator: str, kinds: tuple[str, ...])
     generator : str
         Name of the generator, for the message.
     kinds : tuple of str
-        The boundary kinds the generator handles (`calippso.boundaries.KINDS`).
+        The boundary kinds the generator handles (`calippso.geometry.boundaries.KINDS`).
     """
-    from calippso.boundaries import Boundaries
+    from calippso.geometry.boundaries import Boundaries
 
     if boundaries is None:
         return Boundaries.all_periodic(d)
@@ -99,7 +99,7 @@ def wall_gaps(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Relative gap of every particle to each wall: h = δ/(σ_i/2) − 1, δ the centre's
     distance to the wall (the wall as a partner at contact distance σ_i/2, as in
-    `calippso.walls`; a shrink of all diameters by c turns h into (1 + h)/c − 1, as for a
+    `calippso.geometry.walls`; a shrink of all diameters by c turns h into (1 + h)/c − 1, as for a
     pair). For a cylinder δ = L/2 − ρ, ρ the centre's distance from its axis.
 
     Parameters
@@ -112,7 +112,7 @@ def wall_gaps(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
         Periodic axes; the others have walls at 0 (wall 2μ) and L_μ (wall 2μ + 1), except
         the cylinder's.
     cylinder : tuple of int
-        The two axes (a, b) of a cylinder (wall 2d, `calippso.walls.cylinder_wall`), or ().
+        The two axes (a, b) of a cylinder (wall 2d, `calippso.geometry.walls.cylinder_wall`), or ().
 
     Returns
     -------
@@ -148,8 +148,8 @@ def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray, box: n
     """Scale all diameters down by the (tiny) relative overlap left by round-off, if any,
     between two particles or a particle and a wall (flat or the cylinder's).
 
-    The check is an independent periodic KD-tree search (`calippso.neighbors.min_gap`). The
-    factor is 1 − (−h + `ROUNDOFF_MARGIN`), not `calippso.neighbors.shrink_to_margin`'s
+    The check is an independent periodic KD-tree search (`calippso.geometry.neighbors.min_gap`). The
+    factor is 1 − (−h + `ROUNDOFF_MARGIN`), not `calippso.geometry.neighbors.shrink_to_margin`'s
     (1 + h)(1 − margin), because the two differ in the last bit for some gaps h and the
     generators' outputs must stay the same bit for bit.
 
@@ -174,7 +174,7 @@ def remove_roundoff_overlap(positions: np.ndarray, diameters: np.ndarray, box: n
     correction : float
         Relative shrink applied (0.0 if no pair overlapped).
     """
-    from calippso.neighbors import min_gap
+    from calippso.geometry.neighbors import min_gap
 
     gap, _ = min_gap(positions, diameters, box, periodic)
     if periodic is not None and not np.all(periodic):

@@ -472,7 +472,7 @@ def box_volume(box: np.ndarray) -> float:
 @njit(cache=True)
 def container_volume(box: np.ndarray, cylinder: tuple[int, int]) -> float:
     """Volume of the container: `box_volume`, times π/4 in a cylinder (its circle of
-    diameter L instead of the square L², `calippso.boundaries.Boundaries.volume`)."""
+    diameter L instead of the square L², `calippso.geometry.boundaries.Boundaries.volume`)."""
     volume = box_volume(box)
     if cylinder[0] >= 0:
         volume *= np.pi / 4.0

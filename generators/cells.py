@@ -1,6 +1,6 @@
 """Numba cell lists in d dimensions, used to build Verlet neighbour lists.
 
-Why it exists beside `calippso.neighbors`: the event-driven, force-biased and soft-sphere
+Why it exists beside `calippso.geometry.neighbors`: the event-driven, force-biased and soft-sphere
 loops rebuild their lists from inside compiled Numba code, which cannot call scipy's tree.
 
 A cubic or rectangular box is cut into n_μ ≥ 1 cells per direction, each at least as

@@ -25,7 +25,7 @@ Events, one per particle, kept in an indexed binary min-heap:
   the pair collisions (`_cylinder_event`). The normal is −ρ̂ at contact, and the reflection,
   the impulse and its virial term (σ_i/2, the centre's distance to the wall along the
   radius, × the impulse: the wall's gap under an affine dilation of the box, as for a flat
-  wall) are those of a flat wall. It is wall number 2d (`calippso.walls.cylinder_wall`).
+  wall) are those of a flat wall. It is wall number 2d (`calippso.geometry.walls.cylinder_wall`).
 * neighbour-list expiry: the Verlet lists hold every pair with |r_ij| < S_ij a_b + δ at the
   build (scale a_b). A pair outside the lists cannot touch while every particle has moved less
   than h(t) = (δ − s_max (a(t) − a_b))/2 since the build, so the moment a particle reaches that

@@ -7,8 +7,8 @@ import time
 import numpy as np
 from numba import njit
 
-from calippso.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
-from calippso.packing import Packing
+from calippso.geometry.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
+from calippso.geometry.packing import Packing
 
 from ._checks import (check_boundaries, check_diameters, check_dimension, check_phi,
                       check_positive, phi_estimate, remove_roundoff_overlap)

@@ -6,8 +6,8 @@ import warnings
 
 import numpy as np
 
-from calippso.boundaries import PERIODIC, Boundaries
-from calippso.packing import Packing, ball_volume
+from calippso.geometry.boundaries import PERIODIC, Boundaries
+from calippso.geometry.packing import Packing, ball_volume
 
 from ._checks import check_boundaries, check_diameters, check_dimension, check_phi
 
@@ -31,7 +31,7 @@ def poisson(diameters, d: int, *, phi: float, seed: int = 0,
     seed : int
         Seed of the centres.
     boundaries : Boundaries, optional
-        The container (`calippso.boundaries`); default periodic along every axis. Along an
+        The container (`calippso.geometry.boundaries`); default periodic along every axis. Along an
         axis with walls a centre lies in [σ_i/2, L − σ_i/2]; in a cylinder's circle, within
         (L − σ_i)/2 of its axis (uniform over that disc).
 
@@ -95,7 +95,7 @@ def start_of(diameters, d: int | None, start: Packing | None, *, phi: float, see
     generator : str
         Name of the calling generator, for the messages.
     kinds : tuple of str
-        The boundary kinds the generator handles (`calippso.boundaries.KINDS`); other
+        The boundary kinds the generator handles (`calippso.geometry.boundaries.KINDS`); other
         containers are refused in one line.
 
     Returns

@@ -6,9 +6,9 @@ import time
 
 import numpy as np
 
-from calippso.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
-from calippso.neighbors import SAME_PLACE, check_no_duplicates, min_gap, shrink_to_margin
-from calippso.packing import Packing
+from calippso.geometry.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
+from calippso.geometry.neighbors import SAME_PLACE, check_no_duplicates, min_gap, shrink_to_margin
+from calippso.geometry.packing import Packing
 
 from ._checks import check_positive, remove_roundoff_overlap
 from .checkpoint import Checkpoint, Resumable, digest
@@ -33,7 +33,7 @@ class GrowingSpheres(Resumable):
         Start, periodic, between flat walls or in a cylinder (inside it); if it overlaps, all
         diameters
         are first scaled down by one factor until the closest pair has a gap of 1e-9 σ
-        (`calippso.neighbors.shrink_to_margin`; a Poisson start begins at a tiny density).
+        (`calippso.geometry.neighbors.shrink_to_margin`; a Poisson start begins at a tiny density).
         Particles at the same place (closer than 1e-12 mean diameters) are refused with a
         ValueError that names them.
     temperature : float

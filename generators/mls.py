@@ -6,8 +6,8 @@ import time
 
 import numpy as np
 
-from calippso.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
-from calippso.packing import Packing
+from calippso.geometry.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
+from calippso.geometry.packing import Packing
 
 from ._checks import check_positive
 from ._progress import Progress

@@ -1,6 +1,6 @@
-"""The Numba twins of `calippso.periodic`: its scalar kernels compiled for the inner loops.
+"""The Numba twins of `calippso.geometry.periodic`: its scalar kernels compiled for the inner loops.
 
-The kernels are written once, in `calippso.periodic` (which imports no numba); this module
+The kernels are written once, in `calippso.geometry.periodic` (which imports no numba); this module
 only compiles them, inlined where they are called, and adds the in-place array loop that
 wraps every position.
 """
@@ -10,13 +10,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from calippso import periodic
+from calippso.geometry import periodic
 
 __all__ = ["image_component", "wrap_coordinate", "wrap_into_box", "inverse_sides",
            "all_periodic", "has_walls", "NO_CYLINDER"]
 
 #: The `cylinder` argument of the kernels for a box without a cylinder (with one: its two
-#: axes (a, b), `calippso.boundaries.Boundaries.cylinder_axes`).
+#: axes (a, b), `calippso.geometry.boundaries.Boundaries.cylinder_axes`).
 NO_CYLINDER = (-1, -1)
 
 image_component = njit(cache=True, inline="always")(periodic.image_component)
@@ -38,7 +38,7 @@ def inverse_sides(box: np.ndarray, periodic: np.ndarray) -> np.ndarray:
     box : ndarray, shape (d,)
         Box sides L_μ (length units).
     periodic : ndarray, shape (d,), bool
-        Periodic axes (`calippso.boundaries.Boundaries.periodic`).
+        Periodic axes (`calippso.geometry.boundaries.Boundaries.periodic`).
     """
     inverse = np.zeros(box.shape[0])
     for mu in range(box.shape[0]):

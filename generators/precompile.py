@@ -43,7 +43,7 @@ WARMUP_DIMENSIONS = (2, 3)
 def _containers():
     """(d, boundaries) of every warm-up system: `WARMUP_DIMENSIONS` × periodic, flat walls,
     a cylinder (d ≥ 3)."""
-    from calippso.boundaries import Boundaries
+    from calippso.geometry.boundaries import Boundaries
 
     for d in WARMUP_DIMENSIONS:
         yield d, None

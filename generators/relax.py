@@ -17,8 +17,8 @@ from typing import Callable
 
 import numpy as np
 
-from calippso.packing import Packing
-from calippso.periodic import displacements, wrap
+from calippso.geometry.packing import Packing
+from calippso.geometry.periodic import displacements, wrap
 
 from ._checks import check_boundaries, check_positive, phi_estimate
 from .checkpoint import Checkpoint, digest

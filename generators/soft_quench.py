@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calippso.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
-from calippso.packing import Packing, ball_volume
-from calippso.rattlers import remove_rattlers
+from calippso.geometry.boundaries import CYLINDER, PERIODIC, WALLS, Boundaries
+from calippso.geometry.packing import Packing, ball_volume
+from calippso.geometry.rattlers import remove_rattlers
 
 from . import _fire, _lbfgs, _newton
 from ._checks import (check_boundaries, check_diameters, check_dimension, check_phi,
@@ -643,7 +643,7 @@ def soft_quench(diameters, d: int, *, seed: int = 0, phi_start: float | None = N
         With walls the packing carries the boundaries and lies inside its container;
         `contacts` holds particle pairs only (the stable particles are found with the wall
         contacts counted), and ``wall_contacts`` (particle, wall) pairs, walls 2μ at 0 and
-        2μ + 1 at L_μ, 2d the cylinder (`calippso.walls.cylinder_wall`), shape (K, 2),
+        2μ + 1 at L_μ, 2d the cylinder (`calippso.geometry.walls.cylinder_wall`), shape (K, 2),
         sorted, with ``wall_overlaps`` (1 − δ/(σ_i/2) of each, shape (K,)), hold the stable
         particles' overlaps with the walls before the shrink; ``isostaticity_gap`` is then
         N_c − (d N_s + 1 − zero modes) with N_c counting both, the zero modes being the

@@ -26,7 +26,7 @@ import numpy as np
 import calippso
 from calippso.analysis import gaps as stable_gaps
 from calippso.analysis.fits import window_mle
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 
 WINDOW = (1e-6, 1e-2)
 RESAMPLES = 300

@@ -28,7 +28,7 @@ import numpy as np
 
 import calippso
 from calippso.analysis import analyze
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 
 SLOWDOWN_PRESSURE = 1e3
 

@@ -33,7 +33,7 @@ import numpy as np
 
 import calippso
 from calippso.lp import build_lp, select_pairs
-from calippso.neighbors import NeighborSearch, minimum_image
+from calippso.geometry.neighbors import NeighborSearch, minimum_image
 from calippso.settings import JamSettings
 from calippso.solvers.highs import solve
 

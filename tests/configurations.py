@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from calippso import Packing
-from calippso.boundaries import Boundaries
-from calippso.packing import ball_volume
+from calippso.geometry.boundaries import Boundaries
+from calippso.geometry.packing import ball_volume
 
 
 def random_sequential_addition(n: int, d: int, phi: float, seed: int = 0,

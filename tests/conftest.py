@@ -37,7 +37,7 @@ import pytest  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # configurations.py, lattices.py
 
-from calippso.packing import Packing, minimum_image  # noqa: E402
+from calippso.geometry.packing import Packing, minimum_image  # noqa: E402
 from configurations import overlap_free  # noqa: E402
 
 SHARED_DATA = REPOSITORY.parent / "shared" / "data"

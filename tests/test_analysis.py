@@ -17,7 +17,7 @@ from calippso.analysis import (PooledSample, analyze, bucklers, contact_statisti
 from calippso.analysis.exponents import MODEL, resolve_models
 from calippso.analysis.forces import RESPONSE_THRESHOLD, split_forces
 from calippso.analysis.response import opening_response
-from calippso.packing import minimum_image
+from calippso.geometry.packing import minimum_image
 from calippso.result import JammingResult
 
 
@@ -186,7 +186,7 @@ def _openings_by_least_squares(result: JammingResult, contacts: list[int]) -> np
     (independent of the LU that `opening_response` uses)."""
     from scipy.linalg import solve_triangular
 
-    from calippso.contacts import equilibrium_matrix
+    from calippso.geometry.contacts import equilibrium_matrix
 
     stable = ~result.rattlers
     index = np.cumsum(stable) - 1

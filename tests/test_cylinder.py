@@ -10,7 +10,7 @@ import pytest
 import calippso
 from calippso import Boundaries, Packing
 from calippso.certification.newton import refine_isostatic
-from calippso.walls import CIRCLE_AXES, cylinder_wall, wall_rows_of
+from calippso.geometry.walls import CIRCLE_AXES, cylinder_wall, wall_rows_of
 
 from configurations import lognormal, random_sequential_addition
 

@@ -9,7 +9,7 @@ import pytest
 
 from calippso import Packing
 from calippso.io import read, write
-from calippso.periodic import (lattice_minimum_image, lattice_wrap, reduce_lattice,
+from calippso.geometry.periodic import (lattice_minimum_image, lattice_wrap, reduce_lattice,
                                shortest_lattice_vector, triangular_box)
 
 
@@ -178,7 +178,7 @@ def test_lp_rows_are_the_linearised_distances_with_the_strain_on_boundary_pairs_
     s'_i − s'_j + ε m (s' the displacements with their affine part, m the pair's lattice
     vector): the strain enters the rows of the pairs across the boundary, and no other."""
     from calippso.deformable import _build_lp, _images, strain_count, strain_matrix
-    from calippso.sheared_search import sheared_pairs_within
+    from calippso.geometry.sheared_search import sheared_pairs_within
 
     rng = np.random.default_rng(d)
     n = 40
@@ -342,7 +342,7 @@ def test_a_strict_network_read_from_an_lp_is_solved_by_newton_and_certified(bina
 
 def test_rattlers_overlapped_by_the_newton_move_are_moved_out_and_others_refused():
     from calippso.deformable import _clear_rattlers
-    from calippso.sheared_search import sheared_pairs_within
+    from calippso.geometry.sheared_search import sheared_pairs_within
 
     packing = lattices.triangular(4)
     positions, diameters, matrix = packing.positions.copy(), packing.diameters, packing.lattice

@@ -15,8 +15,8 @@ import pytest
 
 import calippso
 from calippso import Packing, jam
-from calippso.neighbors import min_gap
-from calippso.packing import ball_volume, minimum_image
+from calippso.geometry.neighbors import min_gap
+from calippso.geometry.packing import ball_volume, minimum_image
 
 import lattices
 from configurations import (bidisperse, lognormal, overlap_free, phi_j,
@@ -198,7 +198,7 @@ def test_unjammed_lattices_end_in_a_jammed_packing(name, loose_unjammed_lattices
 def test_positive_self_stress_when_least_squares_is_not_positive(loose_unjammed_lattices):
     """The loose BCC lattice jams into a network whose self-stress nearest to uniform has a
     negative force; the contacts reported are all touching pairs, each carrying force."""
-    from calippso.contacts import equilibrium_matrix, polish_forces, positive_self_stress
+    from calippso.geometry.contacts import equilibrium_matrix, polish_forces, positive_self_stress
 
     result = loose_unjammed_lattices["bcc"][1]
     packing = result.packing
@@ -216,7 +216,7 @@ def test_positive_self_stress_when_least_squares_is_not_positive(loose_unjammed_
 
 def test_no_positive_self_stress_is_reported_as_none():
     """Two discs pushed the same way by both of their contacts cannot be in balance."""
-    from calippso.contacts import positive_self_stress
+    from calippso.geometry.contacts import positive_self_stress
 
     normals = np.array([[1.0, 0.0], [1.0, 0.0]])
     assert positive_self_stress(2, np.array([0, 0]), np.array([1, 1]), normals,

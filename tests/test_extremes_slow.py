@@ -13,7 +13,7 @@ import pytest
 
 import calippso
 from calippso import jam, protocols
-from calippso.neighbors import min_gap
+from calippso.geometry.neighbors import min_gap
 
 from configurations import ls_packing, phi_j, random_sequential_addition
 from conftest import assert_jammed

@@ -15,9 +15,9 @@ import pytest
 
 from calippso import JammingError, Packing, StopReason, jam
 from calippso.certification.floppy_modes import close_floppy_modes
-from calippso.neighbors import NeighborSearch
-from calippso.packing import minimum_image
-from calippso.rattlers import remove_rattlers
+from calippso.geometry.neighbors import NeighborSearch
+from calippso.geometry.packing import minimum_image
+from calippso.geometry.rattlers import remove_rattlers
 
 from conftest import assert_jammed
 

@@ -13,8 +13,8 @@ import pytest
 import calippso
 import generators
 from calippso import Boundaries
-from calippso.neighbors import min_gap
-from calippso.walls import cylinder_wall
+from calippso.geometry.neighbors import min_gap
+from calippso.geometry.walls import cylinder_wall
 from generators import diameters as dist
 
 #: Relative overlap allowed between two particles or a particle and the cylinder

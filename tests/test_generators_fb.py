@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import generators
-from calippso.neighbors import close_pairs, min_gap
+from calippso.geometry.neighbors import close_pairs, min_gap
 from generators import diameters as dist
 
 

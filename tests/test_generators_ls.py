@@ -9,7 +9,7 @@ import pytest
 
 import generators
 from calippso import Packing
-from calippso.neighbors import min_gap
+from calippso.geometry.neighbors import min_gap
 from generators import diameters as dist
 
 #: Largest overlap tolerated, relative to σ_ij (round-off only).

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import generators
-from calippso.neighbors import close_pairs, min_gap
-from calippso.packing import minimum_image
-from calippso.rattlers import remove_rattlers
+from calippso.geometry.neighbors import close_pairs, min_gap
+from calippso.geometry.packing import minimum_image
+from calippso.geometry.rattlers import remove_rattlers
 from generators import diameters as dist
 
 TARGET = 1e-7

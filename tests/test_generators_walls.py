@@ -11,7 +11,7 @@ import pytest
 import calippso
 import generators
 from calippso import Boundaries
-from calippso.neighbors import min_gap
+from calippso.geometry.neighbors import min_gap
 from generators import diameters as dist
 from generators.periodic import NO_CYLINDER
 

@@ -12,7 +12,7 @@ import pytest
 import calippso
 from calippso import Packing, StopReason, jam
 from calippso.history import History, status_sentence
-from calippso.packing import minimum_image
+from calippso.geometry.packing import minimum_image
 
 from configurations import bidisperse, overlap_free, random_sequential_addition
 from conftest import assert_jammed

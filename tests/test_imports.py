@@ -36,9 +36,10 @@ def test_backend_names_are_checked_without_loading_a_backend():
 
 
 #: The calippso modules the generators may import: the geometry base, and the rattler rule.
-GEOMETRY_BASE = {"calippso", "calippso.packing", "calippso.boundaries", "calippso.periodic",
-                 "calippso.neighbors", "calippso.atomic", "calippso.checkpoint",
-                 "calippso.rattlers"}
+GEOMETRY_BASE = {"calippso", "calippso.geometry", "calippso.geometry.packing",
+                 "calippso.geometry.boundaries", "calippso.geometry.periodic",
+                 "calippso.geometry.neighbors", "calippso.geometry.rattlers", "calippso.atomic",
+                 "calippso.checkpoint"}
 #: Imported by the spherocylinder pictures only, when one is drawn (the shared renderer).
 PICTURES = {"calippso.reporting"}
 

@@ -12,7 +12,7 @@ import generators
 from calippso import StopReason, jam
 from calippso.complementarity import read_complementarity
 from calippso.lp import build_lp, select_pairs
-from calippso.neighbors import NeighborSearch, Pairs
+from calippso.geometry.neighbors import NeighborSearch, Pairs
 from calippso import settings as settings_module
 from calippso.settings import INTERIOR_LP_MIN_COLUMNS, JamSettings
 from calippso.solvers import LPSolution

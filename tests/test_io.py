@@ -3,7 +3,7 @@ import pytest
 
 import calippso
 from calippso import Packing
-from calippso.neighbors import min_gap
+from calippso.geometry.neighbors import min_gap
 
 # (name, N, phi from the data README after the .nfo rescale)
 SHARED = [

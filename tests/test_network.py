@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 from calippso.network import ROUNDOFF_SHRINK_MARGIN, remove_roundoff_overlaps
 
 BOX = np.full(3, 10.0)

@@ -15,7 +15,7 @@ import pytest
 import generators
 from calippso import JammingError, Packing, StopReason, jam
 from calippso.certification.network_guess import candidate_networks
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 
 import lattices
 from conftest import assert_jammed

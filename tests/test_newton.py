@@ -7,7 +7,7 @@ from configurations import random_sequential_addition
 from calippso import StopReason, jam
 from calippso.certification.newton import refine_isostatic
 from calippso.certification.sparse_lu import pardiso_available
-from calippso.packing import minimum_image
+from calippso.geometry.packing import minimum_image
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from calippso import Packing
-from calippso.packing import ball_volume, minimum_image, wrap
+from calippso.geometry.packing import ball_volume, minimum_image, wrap
 
 
 def test_phi_of_known_configuration():

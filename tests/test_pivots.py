@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from calippso import JammingError, Packing, StopReason, jam
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 from calippso.certification.newton import refine_isostatic
 from calippso.certification.pivots import DEGENERATE_STEP, pivot_to_jamming
-from calippso.rattlers import remove_rattlers
+from calippso.geometry.rattlers import remove_rattlers
 
 import lattices
 from conftest import assert_jammed

@@ -22,9 +22,9 @@ import pytest
 import scipy.sparse as sp
 
 from calippso import Packing
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 from calippso.certification.newton import Refinement, network_jacobian, refine_isostatic
-from calippso.packing import minimum_image
+from calippso.geometry.packing import minimum_image
 from calippso.certification.pivots import describe_path, pivot_to_jamming, singular_vectors
 
 from conftest import BALANCE_TOLERANCE, assert_jammed

@@ -9,7 +9,7 @@ import pytest
 from configurations import random_sequential_addition
 
 from calippso import Packing, jam
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 from calippso.protocols import precompress, precompress_checkpoint, precompress_note
 
 

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from calippso import JammingError, Packing, jam
 from calippso.ilp import SMALL_BOX_MARGIN
-from calippso.packing import ball_volume
+from calippso.geometry.packing import ball_volume
 
 from configurations import overlap_free
 from conftest import OVERLAP_TOLERANCE, assert_rigid_and_balanced

@@ -1,12 +1,12 @@
-"""`calippso.rattlers`: which particles are rattlers (`remove_rattlers`), and rattlers moved
+"""`calippso.geometry.rattlers`: which particles are rattlers (`remove_rattlers`), and rattlers moved
 out of overlaps with nothing else moved (`separate_rattlers`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from calippso.neighbors import NeighborSearch
-from calippso.rattlers import RATTLER_CLEARANCE, remove_rattlers, separate_rattlers
+from calippso.geometry.neighbors import NeighborSearch
+from calippso.geometry.rattlers import RATTLER_CLEARANCE, remove_rattlers, separate_rattlers
 
 from lattices import triangular
 

@@ -14,7 +14,7 @@ import pytest
 import calippso
 import generators
 from calippso import Boundaries, JammingError
-from calippso.periodic import displacements
+from calippso.geometry.periodic import displacements
 from calippso.routes import DEFAULT_MAX_DISPLACEMENT, lp_route_slow
 from generators import diameters as dist
 from generators.soft_quench import PAUSE_STEPS

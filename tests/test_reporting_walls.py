@@ -13,8 +13,8 @@ import generators
 from calippso import Boundaries, Packing
 from calippso.analysis import analyze, density_profile, pooled_density_profile
 from calippso.analysis.slices import fraction_below, volume_inside_cylinder
-from calippso.neighbors import contact_shrink
-from calippso.packing import ball_volume
+from calippso.geometry.neighbors import contact_shrink
+from calippso.geometry.packing import ball_volume
 
 #: A bulk random jammed packing of equal spheres: φ ≈ 0.64; the middle of the slab below
 #: (2 to 3.5 diameters from the walls) must lie within this band of it.

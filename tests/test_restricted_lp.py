@@ -7,7 +7,7 @@ import pytest
 from configurations import random_sequential_addition
 
 from calippso import jam
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 from calippso.certification.restricted_lp import MAX_OPEN_CONTACTS, TOO_FEW, TOO_MANY, lp_network
 
 

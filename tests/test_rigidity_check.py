@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 from calippso.stages.finish import _unjamming_motion
-from calippso.touching import touching_outside_network
+from calippso.geometry.touching import touching_outside_network
 
 import lattices
 

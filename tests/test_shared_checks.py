@@ -1,4 +1,4 @@
-"""`calippso.neighbors.contact_shrink`: the one shrink that takes an overlapping start to
+"""`calippso.geometry.neighbors.contact_shrink`: the one shrink that takes an overlapping start to
 contact, used by LS (`generators.ls`) and by the ensembles' random protocol."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calippso.neighbors import CONTACT_MARGIN, contact_shrink, min_gap
+from calippso.geometry.neighbors import CONTACT_MARGIN, contact_shrink, min_gap
 
 BOX = np.full(3, 10.0)
 DIAMETERS = np.ones(3)

@@ -18,7 +18,7 @@ from conftest import assert_jammed
 
 import generators
 from calippso import jam
-from calippso.boundaries import Boundaries
+from calippso.geometry.boundaries import Boundaries
 from generators import _fire, _newton
 from generators import diameters as dist
 from generators.initial import poisson

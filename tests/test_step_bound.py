@@ -9,7 +9,7 @@ import pytest
 
 from calippso.ilp import next_step_bound
 from calippso.lp import build_lp, select_pairs
-from calippso.neighbors import NeighborSearch
+from calippso.geometry.neighbors import NeighborSearch
 from calippso.settings import JamSettings
 from calippso.solvers import get_solver
 from calippso.step import Step, held_by_bound

@@ -1,4 +1,4 @@
-"""Pairs that touch outside the contact network (`calippso.touching`), built on purpose.
+"""Pairs that touch outside the contact network (`calippso.geometry.touching`), built on purpose.
 
 A touching pair with zero force is a codimension-one event: from a jammed packing, the
 network's contact equations plus "the nearest open pair touches" are solved with one
@@ -16,8 +16,8 @@ import pytest
 from calippso import JammingResult, Packing, jam
 from calippso.analysis import contact_statistics, gaps, run_record
 from calippso.network import ContactNetwork, certify_network
-from calippso.packing import minimum_image
-from calippso.touching import TOUCHING_GAP, touching_outside_network
+from calippso.geometry.packing import minimum_image
+from calippso.geometry.touching import TOUCHING_GAP, touching_outside_network
 from conftest import assert_jammed
 
 #: Newton on the augmented contact equations stops below this residual (|r|² − Γσ², σ ~ 1).

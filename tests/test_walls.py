@@ -9,11 +9,11 @@ import pytest
 
 import calippso
 from calippso import Boundaries, Packing
-from calippso.contacts import isostaticity_gap
-from calippso.neighbors import NeighborSearch
-from calippso.periodic import minimum_image, wrap
-from calippso.rattlers import remove_rattlers
-from calippso.walls import out_of_layer_moves
+from calippso.geometry.contacts import isostaticity_gap
+from calippso.geometry.neighbors import NeighborSearch
+from calippso.geometry.periodic import minimum_image, wrap
+from calippso.geometry.rattlers import remove_rattlers
+from calippso.geometry.walls import out_of_layer_moves
 
 from configurations import lognormal, random_sequential_addition
 

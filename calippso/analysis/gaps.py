@@ -6,9 +6,9 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from ..neighbors import NeighborSearch
+from ..geometry.neighbors import NeighborSearch
 from ..result import JammingResult
-from ..touching import TOUCHING_GAP
+from ..geometry.touching import TOUCHING_GAP
 from ._inputs import as_results
 from .sample import PooledSample
 

@@ -9,7 +9,7 @@ the bulk packing fraction far from the wall; its mean over the shells, weighted 
 volumes, is the packing fraction φ of the whole packing. A number density of centres would
 instead be a comb of peaks, and tends to the number density, not to φ.
 
-The wall surfaces are those of `calippso.boundaries`: the planes at 0 and L_μ of each axis
+The wall surfaces are those of `calippso.geometry.boundaries`: the planes at 0 and L_μ of each axis
 with walls (s = min(x_μ, L_μ − x_μ)), and a cylinder's circle of radius L/2
 (s = L/2 − the distance from its axis). With several of them, the shells at distance s from
 each one are pooled (near an edge between two walls the shells of one cross those of the
@@ -23,8 +23,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..boundaries import parse_axes
-from ..packing import Packing, ball_volume
+from ..geometry.boundaries import parse_axes
+from ..geometry.packing import Packing, ball_volume
 from ..result import JammingResult
 from .slices import fraction_below, volume_inside_cylinder
 
@@ -160,7 +160,7 @@ def density_profile(packing: Packing | JammingResult, axis: int | str | None = N
     Parameters
     ----------
     packing : Packing or JammingResult
-        A packing with flat walls or a cylinder (`calippso.boundaries`).
+        A packing with flat walls or a cylinder (`calippso.geometry.boundaries`).
     axis : int or str, optional
         Measure from the walls of this axis only ("x", "y", … or a number; an axis of the
         cylinder means the cylinder). Default: every wall, pooled.

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..result import JammingResult
-from ..touching import TOUCHING_GAP
+from ..geometry.touching import TOUCHING_GAP
 from .forces import bucklers
 
 __all__ = ["RUN_RECORD_KEYS", "run_record"]

@@ -13,7 +13,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from ..boundaries import axis_name
+from ..geometry.boundaries import axis_name
 from ..result import JammingResult
 from ._inputs import as_results
 from .sample import PooledSample

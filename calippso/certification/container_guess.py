@@ -18,13 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boundaries import Boundaries
-from ..contacts import isostaticity_gap
-from ..neighbors import NeighborSearch, Pairs
+from ..geometry.boundaries import Boundaries
+from ..geometry.contacts import isostaticity_gap
+from ..geometry.neighbors import NeighborSearch, Pairs
 from .network_guess import (CANDIDATE_GAP, NEAR_CONTACT_GAP, fewest_not_hypostatic,
                             gap_splits)
-from ..rattlers import remove_rattlers
-from ..walls import WallRows, wall_rows_within
+from ..geometry.rattlers import remove_rattlers
+from ..geometry.walls import WallRows, wall_rows_within
 
 __all__ = ["ContainerCandidate", "container_candidates"]
 

@@ -38,15 +38,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
-from ..contacts import isostaticity_gap
-from ..neighbors import NeighborSearch
+from ..geometry.contacts import isostaticity_gap
+from ..geometry.neighbors import NeighborSearch
 from ..network import NEWTON_OVERLAP_TOLERANCE
 from .newton import Refinement, network_jacobian, refine_isostatic
-from ..packing import minimum_image
+from ..geometry.packing import minimum_image
 from .pivots.geometry import (NEAR_GAP, RATIO_CANDIDATES, clear_rattlers, find_closing_pairs,
                               least_norm_solve, onto_contacts, outside_pairs)
 from .pivots.vertex import DEGENERATE_STEP
-from ..rattlers import remove_rattlers
+from ..geometry.rattlers import remove_rattlers
 
 __all__ = ["Closure", "close_floppy_modes", "MAX_CLOSURES"]
 

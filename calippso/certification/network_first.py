@@ -42,12 +42,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..contacts import isostaticity_gap, remove_rattlers
-from ..neighbors import NeighborSearch, Pairs
+from ..geometry.contacts import isostaticity_gap, remove_rattlers
+from ..geometry.neighbors import NeighborSearch, Pairs
 from .floppy_modes import close_floppy_modes
 from .network_guess import CANDIDATE_GAP, Candidate
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
-from ..packing import minimum_image
+from ..geometry.packing import minimum_image
 from .pivots import PivotPath, pivot_to_jamming
 from .restricted_lp import TOO_FEW, lp_network
 

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..contacts import isostaticity_gap, remove_rattlers
-from ..neighbors import NeighborSearch, Pairs
+from ..geometry.contacts import isostaticity_gap, remove_rattlers
+from ..geometry.neighbors import NeighborSearch, Pairs
 from .floppy_modes import MAX_CLOSURES
 from .restricted_lp import MAX_OPEN_CONTACTS
 

@@ -6,7 +6,7 @@ unknowns d (N_s − 1) + 1), the jamming point solves the square nonlinear syste
     |r_c|² / σ_c² = Γ      for every contact c = (i, j), with r_c = x_i − x_j (fixed image),
 
 in the positions x of the stable particles (one of them pinned) and the common inflation Γ
-of the squared diameters. A contact w of particle i with a container wall (`calippso.walls`)
+of the squared diameters. A contact w of particle i with a container wall (`calippso.geometry.walls`)
 adds the equation δ_w²/σ_w² = Γ, with δ_w the centre-to-wall distance and σ_w = σ_i/2; in a
 box with walls the pinned particle is held along the periodic axes only (a wall holds the
 rest), and in a cylinder one more coordinate holds its rotation (`pinned_coordinates`).
@@ -34,10 +34,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from ..boundaries import Boundaries
-from ..packing import minimum_image, wrap
+from ..geometry.boundaries import Boundaries
+from ..geometry.packing import minimum_image, wrap
 from .sparse_lu import Factors, factorize
-from ..walls import wall_rows_of
+from ..geometry.walls import wall_rows_of
 
 __all__ = ["Refinement", "refine_isostatic", "NEWTON_FAILED", "contact_jacobian",
            "network_jacobian", "pinned_coordinates", "contact_equations_jacobian",
@@ -246,10 +246,10 @@ def refine_isostatic(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         Factors of a matrix close to the Jacobian at `positions` (the same unknowns), used
         for the first chord steps instead of a new factorisation.
     wall_particle, wall : ndarray, shape (K,), int, optional
-        Contacts of stable particles with the container's walls (`calippso.walls`
+        Contacts of stable particles with the container's walls (`calippso.geometry.walls`
         numbering); none by default.
     boundaries : Boundaries, optional
-        The container (`calippso.boundaries`); None: periodic along every axis. Its zero
+        The container (`calippso.geometry.boundaries`); None: periodic along every axis. Its zero
         modes are removed by `pinned_coordinates`. The network is square when M + K =
         (free coordinates) + 1.
 

@@ -32,8 +32,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import linprog
 
-from ..contacts import isostaticity_gap, remove_rattlers
-from ..neighbors import Pairs
+from ..geometry.contacts import isostaticity_gap, remove_rattlers
+from ..geometry.neighbors import Pairs
 from .newton import network_jacobian
 from .sparse_lu import factorize
 

@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from .newton import (CHORD_CONTRACTION, MAX_CORRECTION, MAX_ITERATIONS, MIN_FORCE_RATIO,
                      RESIDUAL_TOLERANCE, ROUNDOFF_RESIDUAL, STEP_TOLERANCE,
                      contact_equations_jacobian, free_columns, self_stress)
-from ..periodic import lattice_wrap
+from ..geometry.periodic import lattice_wrap
 from .sparse_lu import factorize
 
 __all__ = ["StrictRefinement", "refine_strict", "strict_unknowns"]

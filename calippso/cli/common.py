@@ -23,12 +23,12 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..boundaries import CYLINDER, WALLS, Boundaries
+from ..geometry.boundaries import CYLINDER, WALLS, Boundaries
 from ..protocols import DISTRIBUTIONS
 from ..solvers import backend_names
 
 if TYPE_CHECKING:
-    from ..packing import Packing
+    from ..geometry.packing import Packing
 
 EXIT_DATA, EXIT_USAGE, EXIT_NOT_CONVERGED = 1, 2, 3
 #: Exit code of an interrupted command (128 + SIGINT, as a shell reports it).

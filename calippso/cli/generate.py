@@ -138,7 +138,7 @@ def generate_quench(n, d, distribution, ratio, std, seed, pressure, minimiser, c
     import calippso
     import generators
     from ..atomic import save_npz_atomic
-    from ..packing import packing_arrays
+    from ..geometry.packing import packing_arrays
 
     sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)
     generation = call_with_boundaries(generators.soft_quench, container, d, sizes, d, seed=seed,
@@ -239,7 +239,7 @@ def generate_random(n, d, distribution, ratio, std, seed, phi, container, output
 
     import calippso
     import generators
-    from ..neighbors import contact_shrink
+    from ..geometry.neighbors import contact_shrink
 
     began = time.perf_counter()
     sizes = make_diameters(n, distribution, ratio=ratio, std=std, seed=seed)

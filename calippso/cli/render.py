@@ -14,7 +14,7 @@ from .common import with_container
 if TYPE_CHECKING:
     import numpy as np
 
-    from ..packing import Packing
+    from ..geometry.packing import Packing
 
 
 @click.command()

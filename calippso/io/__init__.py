@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..packing import Packing
+from ..geometry.packing import Packing
 from . import extxyz, gsd, hdf5, npz, packing_generation, skoge_donev
 
 __all__ = ["read", "read_result", "write", "SUFFIXES"]

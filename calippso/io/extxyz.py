@@ -14,7 +14,7 @@ columns ``rattler:L:1`` (T for rattlers) and ``contacts:I:1`` (contacts per part
 OVITO can use to colour particles. The reader also accepts OVITO's ``radius`` column instead
 of ``diameter``.
 
-Flat walls (`calippso.boundaries`) are the axes whose ``pbc`` flag is F: ``pbc="T T F"``
+Flat walls (`calippso.geometry.boundaries`) are the axes whose ``pbc`` flag is F: ``pbc="T T F"``
 with ``dimension=3`` is a box with walls at z = 0 and z = L_z; in d = 2 the third flag is
 always F and the first two say which axes are periodic. A cylinder has no ``pbc`` form and
 is refused.
@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path
-from ..boundaries import PERIODIC, WALLS, Boundaries
-from ..packing import Packing
+from ..geometry.boundaries import PERIODIC, WALLS, Boundaries
+from ..geometry.packing import Packing
 from .sheared import refuse_sheared
 
 __all__ = ["column_names", "read", "read_rattlers", "write"]

@@ -5,10 +5,10 @@ The HOOMD schema stores positions and diameters as float32, centred on the origi
 create overlaps, so the exact float64 values are stored too, as logged quantities
 ``calippso/positions`` (wrapped into [0, L)), ``calippso/diameters`` and ``calippso/box``;
 the reader prefers them and falls back to the float32 schema data for files written by other
-programs. A `JammingResult` also logs ``calippso/rattlers`` and ``calippso/contacts``
+programs. A `JammingResult` also logs ``calippso/geometry/rattlers`` and ``calippso/geometry/contacts``
 (contacts per particle) and sets the particle type to "stable" or "rattler". A box with walls
-logs ``calippso/boundaries``, one code per axis (the index of its kind in
-`calippso.boundaries.KINDS`); a file without it is periodic.
+logs ``calippso/geometry/boundaries``, one code per axis (the index of its kind in
+`calippso.geometry.boundaries.KINDS`); a file without it is periodic.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path
-from ..boundaries import KINDS, Boundaries
-from ..packing import Packing
+from ..geometry.boundaries import KINDS, Boundaries
+from ..geometry.packing import Packing
 from .sheared import refuse_sheared
 
 __all__ = ["read", "write"]
@@ -65,13 +65,13 @@ def write(obj, path: Path) -> Path:
         "calippso/box": packing.box,
     }
     if not packing.boundaries.is_periodic:
-        frame.log["calippso/boundaries"] = np.array(
+        frame.log["calippso/geometry/boundaries"] = np.array(
             [KINDS.index(kind) for kind in packing.boundaries.kinds], dtype=np.uint8)
     if hasattr(obj, "rattlers") and hasattr(obj, "contact_numbers"):
         frame.particles.types = ["stable", "rattler"]
         frame.particles.typeid = obj.rattlers.astype(np.uint32)
-        frame.log["calippso/rattlers"] = obj.rattlers.astype(np.uint8)
-        frame.log["calippso/contacts"] = obj.contact_numbers
+        frame.log["calippso/geometry/rattlers"] = obj.rattlers.astype(np.uint8)
+        frame.log["calippso/geometry/contacts"] = obj.contact_numbers
     path = Path(path)
     with atomic_path(path) as temporary:
         with hoomd.open(temporary, mode="w") as trajectory:
@@ -97,8 +97,8 @@ def read(path: Path) -> Packing:
         raise ValueError(f"{path}: not a readable GSD file ({error})") from None
     log = frame.log
     if "calippso/positions" in log:
-        boundaries = (Boundaries(tuple(KINDS[int(code)] for code in log["calippso/boundaries"]))
-                      if "calippso/boundaries" in log else None)
+        boundaries = (Boundaries(tuple(KINDS[int(code)] for code in log["calippso/geometry/boundaries"]))
+                      if "calippso/geometry/boundaries" in log else None)
         try:
             return Packing(log["calippso/positions"], log["calippso/diameters"],
                            log["calippso/box"], boundaries)

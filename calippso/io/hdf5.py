@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path
-from ..packing import Packing, packing_arrays, packing_of
+from ..geometry.packing import Packing, packing_arrays, packing_of
 
 __all__ = ["read", "read_result", "write"]
 

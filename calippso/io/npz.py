@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import save_npz_atomic
-from ..packing import Packing, packing_arrays, packing_of
+from ..geometry.packing import Packing, packing_arrays, packing_of
 
 __all__ = ["load_arrays", "read", "write"]
 

@@ -7,9 +7,9 @@ and its "Boundaries mode:" says the container (a file without the line is period
 
 * 1, periodic in x, y and z;
 * 2, a cylinder: a circle of diameter X = Y inscribed in the box in xy, centred at
-  (X/2, Y/2), periodic in z (`calippso.boundaries.Boundaries.cylinder`);
+  (X/2, Y/2), periodic in z (`calippso.geometry.boundaries.Boundaries.cylinder`);
 * 3, a rectangle in xy: flat walls at x = 0, X and y = 0, Y, periodic in z
-  (`calippso.boundaries.Boundaries.walls`).
+  (`calippso.geometry.boundaries.Boundaries.walls`).
 
 The diameters are rescaled as in mode 1 in every mode (the rescale is a ratio of two
 porosities of the same container). Mode 4 (a trapezoid) is refused until calippso can jam
@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..boundaries import Boundaries
-from ..packing import Packing
+from ..geometry.boundaries import Boundaries
+from ..geometry.packing import Packing
 from .sheared import refuse_sheared
 
 #: PackingGeneration's "Boundaries mode:" values and what each means.

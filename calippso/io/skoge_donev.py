@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..packing import Packing
+from ..geometry.packing import Packing
 from .sheared import refuse_sheared
 
 

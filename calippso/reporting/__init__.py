@@ -18,7 +18,7 @@ from ..result import JammingResult
 from ._matplotlib import pyplot
 from .figures import plot_contact_numbers, plot_forces, plot_gaps, plot_history, plot_walls
 from .page import markdown
-from .summary import summary_dict, write_json
+from .summary_json import summary_dict, write_json
 
 __all__ = ["report", "plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history",
            "plot_walls", "pyplot"]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..packing import Packing
+from ..geometry.packing import Packing
 
 __all__ = ["WALL_COLOUR", "wall_key", "draw_walls_2d", "draw_walls_3d", "povray_walls"]
 

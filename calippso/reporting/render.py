@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..packing import Packing
+from ..geometry.packing import Packing
 from .containers import draw_walls_2d, draw_walls_3d, povray_walls, wall_key
 
 __all__ = ["BACKENDS", "render_spheres", "sphere_colours", "sphere_title", "view_basis",

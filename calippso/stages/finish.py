@@ -13,14 +13,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..contacts import isostaticity_gap
+from ..geometry.contacts import isostaticity_gap
 from ..history import StopReason, status_sentence
 from ..network import (ContactNetwork, network_balance, polished_forces,
                        remove_roundoff_overlaps, touching_network)
 from ..certification.newton import pinned_coordinates
-from ..packing import Packing
+from ..geometry.packing import Packing
 from ..result import JammingResult
-from ..touching import TOUCHING_GAP, Touching, touching_outside_network
+from ..geometry.touching import TOUCHING_GAP, Touching, touching_outside_network
 from .lp_step import record_lp, solve_lp
 from .newton_stage import newton
 from .state import LoopState, Run
@@ -143,7 +143,7 @@ def _unjamming_motion(packing: Packing, contacts: np.ndarray, wall_contacts: np.
     test could not decide (its LP failed: the run keeps its reason, unverified).
 
     The linear test of `calippso.categories` (collective class) on the network's contacts
-    and every other pair that touches (`touching`, `calippso.touching`): a motion that keeps every
+    and every other pair that touches (`touching`, `calippso.geometry.touching`): a motion that keeps every
     touching pair from overlapping to first order and moves stable particles is an
     unjamming motion, and the packing is not rigid whatever its contact count.
     """

@@ -16,13 +16,13 @@ import numpy as np
 
 from ..history import Record
 from ..lp import build_lp, largest_safe_step, select_pairs, select_walls
-from ..neighbors import NeighborSearch, Pairs
+from ..geometry.neighbors import NeighborSearch, Pairs
 from ..network import ContactNetwork, walls_near_contact
-from ..packing import wrap
+from ..geometry.packing import wrap
 from ..settings import JamSettings
 from ..solvers.policy import LPFailed
 from ..step import Step, analyse
-from ..walls import WallRows, wall_ids, wall_rows_of
+from ..geometry.walls import WallRows, wall_ids, wall_rows_of
 from .state import NO_PAIRS, LoopState, Run
 
 __all__ = ["LPStep", "lp_step", "solve_lp", "record_lp", "INSIDE_BOUND_FRACTION",

@@ -28,7 +28,7 @@ from ..network import ContactNetwork, network_key
 from ..certification.network_first import STAGE_PIVOTS, PivotBudget, SettledNetwork, settle_candidate
 from ..certification.network_guess import Candidate, candidate_networks
 from ..certification.newton import Refinement
-from ..rattlers import remove_rattlers, separate_rattlers
+from ..geometry.rattlers import remove_rattlers, separate_rattlers
 from .newton_stage import newton, record_pivots
 from .state import LoopState, Run
 
@@ -38,7 +38,7 @@ __all__ = ["Certified", "network_first", "fallback_start", "MAX_NETWORK_GUESSES"
 #: factorisations).
 MAX_NETWORK_GUESSES = 3
 #: The LP loop's start after a refused candidate moves at most this many overlapping
-#: particles apart by a small LP (`calippso.rattlers.separate_rattlers`); with more, that LP
+#: particles apart by a small LP (`calippso.geometry.rattlers.separate_rattlers`); with more, that LP
 #: is as large as the loop's own (minutes at N = 8192), and every diameter shrinks by the
 #: worst overlap instead.
 MAX_SEPARATED = 256
@@ -122,7 +122,7 @@ def fallback_start(run: Run, state: LoopState, reached: Refinement,
     """The LP loop's start after a refused candidate: the jamming point it reached.
 
     Its rattlers were not moved while the diameters grew, so the particles that overlap
-    there are moved apart by the small LP of `calippso.rattlers.separate_rattlers` (or,
+    there are moved apart by the small LP of `calippso.geometry.rattlers.separate_rattlers` (or,
     where that finds no room or more than `MAX_SEPARATED` particles overlap, every diameter
     shrinks by the worst overlap). The first
     bound is the candidate's near gap (clipped to the settings' range): the pairs that

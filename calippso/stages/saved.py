@@ -15,7 +15,7 @@ import numpy as np
 from ..atomic import digest
 from ..checkpoint import Checkpoint
 from ..history import HISTORY_COLUMNS
-from ..packing import Packing
+from ..geometry.packing import Packing
 from ..settings import JamSettings
 from ..solvers import Basis
 from .state import LoopState, Run

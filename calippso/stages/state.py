@@ -13,11 +13,11 @@ from typing import Callable
 
 import numpy as np
 
-from ..boundaries import Boundaries
+from ..geometry.boundaries import Boundaries
 from ..errors import JammingError
 from ..history import History, Record
-from ..neighbors import NeighborSearch
-from ..packing import Packing
+from ..geometry.neighbors import NeighborSearch
+from ..geometry.packing import Packing
 from ..settings import JamSettings
 from ..solvers import Basis
 from ..solvers.policy import SolverPolicy

@@ -4,7 +4,7 @@ Equal spheres at a flat wall form layers with centres in one plane. A particle w
 all lie in such a plane can leave it at no first-order cost, so the LP converges (or creeps by
 second-order steps) with a hypostatic network: a floppy mode. Leaving opens its contacts at
 second order, and Γ can then grow: not a jamming point. `kick_off_walls` moves such particles
-out of their layer (`calippso.walls.out_of_layer_moves`) and the loop goes on. A floppy mode
+out of their layer (`calippso.geometry.walls.out_of_layer_moves`) and the loop goes on. A floppy mode
 elsewhere (a wall row is linear, so the LP sees no second order at a wall) is left to the
 LPs: the loop goes on from a fresh step bound and no warm start, which lets them move along
 the mode far enough for its second order to open contacts.
@@ -18,7 +18,7 @@ import numpy as np
 
 from ..history import Record
 from ..network import ContactNetwork
-from ..walls import out_of_layer_moves
+from ..geometry.walls import out_of_layer_moves
 from .state import LoopState, Run
 
 __all__ = ["kick_off_walls", "WALL_KICK_STEP", "MAX_WALL_KICKS", "WALL_KICK_GROWTH"]
@@ -31,7 +31,7 @@ MAX_WALL_KICKS = 20
 #: network: the LPs then creep along such a mode by second-order steps.
 WALL_KICK_GROWTH = 1e-9
 #: Pairs closer than this relative gap touch, and those with |n_μ| below the next value
-#: lie in a layer parallel to the walls of axis μ (`calippso.walls.out_of_layer_moves`).
+#: lie in a layer parallel to the walls of axis μ (`calippso.geometry.walls.out_of_layer_moves`).
 WALL_KICK_TOUCHING = 1e-6
 WALL_KICK_COPLANAR = 1e-6
 

@@ -17,7 +17,7 @@ import math
 import numba
 import numpy as np
 
-from calippso.periodic import minimum_image
+from calippso.geometry.periodic import minimum_image
 
 from ..periodic import image_component
 

@@ -7,7 +7,7 @@ from math import pi
 
 import numpy as np
 
-from calippso.periodic import wrap
+from calippso.geometry.periodic import wrap
 
 __all__ = ["SpherocylinderPacking", "spherocylinder_volume", "min_particles_for_box"]
 

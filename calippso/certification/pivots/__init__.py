@@ -25,7 +25,7 @@ exact geometry, one contact at a time, as the simplex method moves from vertex t
 
 Rattlers (those of the start, and those a release leaves) carry no force and do not move
 with the floppy modes; when a moved cage overlaps its rattler, the rattler is moved out of
-the way (`calippso.rattlers.separate_rattlers`). When a cage closes on its rattler before
+the way (`calippso.geometry.rattlers.separate_rattlers`). When a cage closes on its rattler before
 the pair of the ratio test closes, the rattler joins the network with the d + 1 pairs of its
 cage (d unknowns and d + 1 rows: the released network becomes isostatic again). When the
 cage of a particle that the release left with d contacts closes on it, the pivot is made

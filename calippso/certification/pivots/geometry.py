@@ -14,12 +14,12 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from ...neighbors import NeighborSearch, Pairs
+from ...geometry.neighbors import NeighborSearch, Pairs
 from ...network import NEWTON_OVERLAP_TOLERANCE
 from ..newton import (MAX_CORRECTION, MAX_ITERATIONS, MAX_REFINEMENTS, REFINEMENT_TOLERANCE,
                       RESIDUAL_TOLERANCE, STEP_TOLERANCE, Refinement, network_jacobian)
-from ...packing import minimum_image, wrap
-from ...rattlers import separate_rattlers
+from ...geometry.packing import minimum_image, wrap
+from ...geometry.rattlers import separate_rattlers
 from ..sparse_lu import Factors, factorize
 
 __all__ = ["find_closing_pairs", "closing_rates", "outside_pairs", "onto_contacts",
@@ -49,7 +49,7 @@ RATIO_CANDIDATES = 4
 
 def clear_rattlers(search: NeighborSearch, stable: np.ndarray) -> np.ndarray | None:
     """The positions of `search` with the rattlers (not `stable`) moved out of the cages that
-    overlap them (`calippso.rattlers.separate_rattlers`, within `RATTLER_REACH`), shape
+    overlap them (`calippso.geometry.rattlers.separate_rattlers`, within `RATTLER_REACH`), shape
     (N, d); the positions themselves when nothing overlaps; None when a cage has closed on
     its rattler."""
     close = search.pairs_near_contact()

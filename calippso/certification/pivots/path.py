@@ -10,12 +10,12 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from ...neighbors import NeighborSearch
+from ...geometry.neighbors import NeighborSearch
 from ...network import NEWTON_OVERLAP_TOLERANCE
 from ..newton import (MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, network_jacobian,
                       refine_isostatic)
-from ...packing import minimum_image
-from ...rattlers import remove_rattlers
+from ...geometry.packing import minimum_image
+from ...geometry.rattlers import remove_rattlers
 from ..sparse_lu import Factors, factorize
 from .geometry import (CAGE_GAP, NEAR_GAP, RATIO_CANDIDATES, closing_rates, find_closing_pairs,
                        outside_pairs, rattlers_out_of_the_way, refined_solve)

@@ -13,11 +13,11 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from ...neighbors import NeighborSearch, Pairs
+from ...geometry.neighbors import NeighborSearch, Pairs
 from ...network import NEWTON_OVERLAP_TOLERANCE
 from ..newton import RESIDUAL_TOLERANCE, network_jacobian, refine_isostatic
-from ...packing import minimum_image
-from ...rattlers import remove_rattlers
+from ...geometry.packing import minimum_image
+from ...geometry.rattlers import remove_rattlers
 from ..sparse_lu import Factors, factorize
 from .geometry import (NEAR_GAP, RATIO_CANDIDATES, find_closing_pairs, onto_contacts,
                        outside_pairs, rattlers_out_of_the_way, refined_solve)

@@ -15,7 +15,7 @@ rattler that touched its cage can end up overlapping it by the distance the cage
 one row per pair with a rattler that could touch within the displacement bound. By the
 Cauchy–Schwarz inequality |r + Δ| ≥ n·(r + Δ) = |r| + n·Δ, so t ≥ 0 leaves every such pair
 apart exactly, however large the displacement: the rows are not a linearisation. In a
-container, a rattler near a wall adds the row δ' + e_w·s_i ≥ σ_w (1 + t) of `calippso.walls`
+container, a rattler near a wall adds the row δ' + e_w·s_i ≥ σ_w (1 + t) of `calippso.geometry.walls`
 (exact for a flat wall, with the curvature margin for a cylinder).
 """
 
@@ -50,7 +50,7 @@ def remove_rattlers(n: int, d: int, i: np.ndarray, j: np.ndarray,
     i, j : ndarray, shape (M,)
         Contact pairs.
     wall_particle : ndarray, shape (K,), int, optional
-        The particle of every wall contact (`calippso.walls`); a wall contact is kept
+        The particle of every wall contact (`calippso.geometry.walls`); a wall contact is kept
         exactly when its particle is stable.
 
     Returns
@@ -91,7 +91,7 @@ def separate_rattlers(positions: np.ndarray, diameters: np.ndarray, box: np.ndar
         Bound on each displacement component of a rattler.
     clearance : float
         Target relative gap h = |r|/σ − 1 of every pair with a rattler.
-    boundaries : calippso.boundaries.Boundaries, optional
+    boundaries : calippso.geometry.boundaries.Boundaries, optional
         The container; None: periodic along every axis.
 
     Returns

@@ -1,6 +1,6 @@
 """From LP duals to the contact network: contacts, forces, isostaticity, balance.
 
-`remove_rattlers` lives in `calippso.rattlers` (the generators use it too); it is imported
+`remove_rattlers` lives in `calippso.geometry.rattlers` (the generators use it too); it is imported
 here as well, for the modules that take it from this one.
 """
 
@@ -50,7 +50,7 @@ def force_balance(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
     """max over stable particles of |Σ_j f_ij n_ij| / mean force (0 when there is no force).
 
     `walls`, when given, is (particle, inward normals (K, d), forces) of the wall contacts
-    (`calippso.walls`): their forces enter the net force and the mean.
+    (`calippso.geometry.walls`): their forces enter the net force and the mean.
     """
     all_forces = forces if walls is None else np.concatenate([forces, walls[2]])
     if all_forces.size == 0 or not stable.any():
@@ -73,7 +73,7 @@ def isostaticity_gap(n_contacts: int, n_stable: int, d: int,
     is stable).
 
     In a periodic box the zero modes are the d translations, and the count is the familiar
-    N_c − d (N_s − 1) − 1. With walls (`calippso.boundaries.Boundaries.zero_modes`) only the
+    N_c − d (N_s − 1) − 1. With walls (`calippso.geometry.boundaries.Boundaries.zero_modes`) only the
     translations along periodic axes are left, and N_c counts the wall contacts too.
     """
     if n_stable == 0:
@@ -122,7 +122,7 @@ def polish_forces(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarray,
         Starting forces (e.g. the duals / 2).
     extra : scipy.sparse matrix, shape (n·d, K), optional
         Further columns of the equilibrium matrix (the wall contacts,
-        `calippso.walls.wall_equilibrium_columns`); `weights` and `forces` then have
+        `calippso.geometry.walls.wall_equilibrium_columns`); `weights` and `forces` then have
         M + K entries, the pairs' first.
 
     Returns

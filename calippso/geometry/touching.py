@@ -40,7 +40,7 @@ class Touching:
         Their relative gaps h_ij.
     walls : ndarray, shape (L, 2), int64
         (particle, wall) of stable particles touching a wall outside the wall contacts (wall
-        numbering of `calippso.walls`); empty in a periodic box.
+        numbering of `calippso.geometry.walls`); empty in a periodic box.
     wall_gaps : ndarray, shape (L,)
         Their relative gaps to the wall.
     """

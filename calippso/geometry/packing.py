@@ -1,9 +1,9 @@
 """The `Packing` type: hard (hyper)spheres in a box (periodic, or closed by walls: its
-`calippso.boundaries.Boundaries`), its packing fraction and the d-ball volume.
+`calippso.geometry.boundaries.Boundaries`), its packing fraction and the d-ball volume.
 
 This module imports numpy only, so that every part of the project (the LP core, the Numba
 generators, the readers) can share it without pulling in anything heavy. The periodic
-geometry lives in `calippso.periodic`; `minimum_image` and `wrap` are imported here too, for
+geometry lives in `calippso.geometry.periodic`; `minimum_image` and `wrap` are imported here too, for
 the modules that take them from this one.
 """
 
@@ -75,7 +75,7 @@ class Packing:
     box : array_like, shape (d,) or scalar
         Box side lengths L_μ > 0 (a scalar means a cubic box).
     boundaries : Boundaries, optional
-        How each axis is closed (`calippso.boundaries`); default: periodic along every axis.
+        How each axis is closed (`calippso.geometry.boundaries`); default: periodic along every axis.
     box_matrix : array_like, shape (d, d), optional
         A sheared periodic box: the box vectors as columns, upper triangular with the
         diagonal equal to `box` (`Packing.sheared` builds it from any box matrix). None (the
@@ -194,7 +194,7 @@ class Packing:
         -------
         Packing
             The same packing rotated so that its box matrix is upper triangular with a
-            positive diagonal (`calippso.periodic.triangular_box`); a rectangular box when
+            positive diagonal (`calippso.geometry.periodic.triangular_box`); a rectangular box when
             the box vectors are orthogonal and along the axes.
         """
         matrix = _as_float_array(matrix, "box matrix", 2)

@@ -1,7 +1,7 @@
 """Pair search in a sheared periodic box (a box matrix whose columns are the box vectors).
 
 `cKDTree` applies the periodic boundary of a rectangular box only. In a sheared box the
-centres are wrapped into the cell of the LLL-reduced lattice (`calippso.periodic`), the
+centres are wrapped into the cell of the LLL-reduced lattice (`calippso.geometry.periodic`), the
 3^d cells around it are copied, and a plain tree finds every pair within the cutoff
 between the centres and the copies. The cutoff must stay below half the shortest lattice
 vector, so that no pair has two images within it.

@@ -1,6 +1,6 @@
 """Hard container walls in the jamming core: particle–wall rows, their forces, and the loads.
 
-A box with flat walls along axis μ (`calippso.boundaries`) has a wall at 0 and one at L_μ.
+A box with flat walls along axis μ (`calippso.geometry.boundaries`) has a wall at 0 and one at L_μ.
 Walls are numbered 2μ (the wall at 0) and 2μ + 1 (the wall at L_μ). A cylinder (a circle of
 diameter L inscribed in the box in the plane of its two axes a, b, centred at L/2) is one
 wall, numbered 2d (`cylinder_wall`). A particle i of diameter σ_i at distance δ from a wall
@@ -141,7 +141,7 @@ def wall_rows_of(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
     particle, wall : ndarray, shape (K,), int
         The pairs (`WallRows` numbering).
     cylinder_axes : tuple of int
-        The cylinder's two axes (`calippso.boundaries.Boundaries.cylinder_axes`), needed
+        The cylinder's two axes (`calippso.geometry.boundaries.Boundaries.cylinder_axes`), needed
         when a pair is with the cylinder.
     """
     particle = np.asarray(particle, dtype=np.int64)
@@ -181,7 +181,7 @@ def wall_rows_within(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     positions : ndarray, shape (N, d)
     diameters : ndarray, shape (N,)
     box : ndarray, shape (d,)
-    boundaries : calippso.boundaries.Boundaries
+    boundaries : calippso.geometry.boundaries.Boundaries
         The container: its flat walls and its cylinder.
     reach : float
         Bound b on each displacement component (length units, ≥ 0): the step bound when
@@ -230,7 +230,7 @@ def wall_net_forces(n: int, particle: np.ndarray, normals: np.ndarray,
 
 def wall_equilibrium_columns(n: int, particle: np.ndarray, normals: np.ndarray):
     """The (n·d, K) sparse columns of the equilibrium matrix for K wall contacts: column k
-    holds e_w in the rows of its particle (`calippso.contacts.equilibrium_matrix`)."""
+    holds e_w in the rows of its particle (`calippso.geometry.contacts.equilibrium_matrix`)."""
     d = normals.shape[1]
     k = particle.shape[0]
     rows = (particle[:, None] * d + np.arange(d)).ravel()
@@ -277,7 +277,7 @@ def out_of_layer_moves(search, wall_axes: tuple[int, ...], wall_particles: np.nd
 
     Parameters
     ----------
-    search : calippso.neighbors.NeighborSearch
+    search : calippso.geometry.neighbors.NeighborSearch
         The configuration (mean diameters).
     wall_axes : tuple of int
         Axes with flat walls.

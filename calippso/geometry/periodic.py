@@ -1,6 +1,6 @@
 """Periodic geometry of a rectangular box: the minimum image and wrapping into the box.
 
-Axes bounded by walls or a cylinder (`calippso.boundaries`) are not periodic: the numpy
+Axes bounded by walls or a cylinder (`calippso.geometry.boundaries`) are not periodic: the numpy
 functions take an optional mask `periodic` (shape (d,), bool; None means every axis is
 periodic, the fast path) and leave the other axes alone. The scalar kernel `image_component`
 does the same when given ``inverse = 0`` for such an axis.
@@ -48,7 +48,7 @@ def minimum_image(delta: np.ndarray, box: np.ndarray,
     box : ndarray, shape (d,)
         Box sides L_μ (length units).
     periodic : ndarray, shape (d,), bool, optional
-        Periodic axes (`calippso.boundaries.Boundaries.periodic`); None: all of them.
+        Periodic axes (`calippso.geometry.boundaries.Boundaries.periodic`); None: all of them.
 
     Returns
     -------
