@@ -50,8 +50,8 @@ from calippso import Boundaries
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data"
-QUENCHES = Path("/work/cache")
-SCANS = Path("/work/cache/scan")
+#: Where the made inputs are kept when no --cache is given.
+INPUTS = ROOT / "bench" / ".stage-inputs"
 
 #: The inputs: name -> how to make (or read) it.
 SHARED_FILES = {"skoge-donev": "skoge_donev_N1000_d3_p1e12.dat",
@@ -61,11 +61,17 @@ SHARED_FILES = {"skoge-donev": "skoge_donev_N1000_d3_p1e12.dat",
 LS_INPUTS = {"ls-d3-n1024-s1": (3, 1024, 1), "ls-d3-n1024-s2": (3, 1024, 2),
              "ls-d3-n1024-s3": (3, 1024, 3), "ls-d2-n256-s1": (2, 256, 1),
              "ls-d4-n256-s1": (4, 256, 1), "ls-d5-n256-s1": (5, 256, 1)}
-QUENCH_INPUTS = {"quench-d3-n1024": 1024, "quench-d3-n2048": 2048}
-CONTAINER_INPUTS = {"ls-walls-x": "ls_walls_x_d3_n1000_s1_p100000.npz",
-                    "ls-cylinder": "ls_cylinder_xy_d3_n1000_s1_p100000.npz",
-                    "quench-walls-xy": "quench_walls_xy_d3_n1000_s1.npz",
-                    "quench-cylinder": "quench_cylinder_xy_d3_n1000_s1.npz"}
+#: Soft quenches in d = 3: name -> (N, target pressure, seed), each at the default target
+#: pressure of its size (`generators.default_target_pressure`).
+QUENCH_INPUTS = {"quench-d3-n1024": (1024, 1e-6, 1), "quench-d3-n2048": (2048, 1e-6, 1),
+                 "quench-d3-n4096": (4096, 1e-6, 1), "quench-d3-n8192-s1": (8192, 1e-7, 1),
+                 "quench-d3-n8192-s2": (8192, 1e-7, 2)}
+#: Containers, N = 1000 equal spheres in d = 3, seed 1: name -> (generator, kind, axes).
+CONTAINER_INPUTS = {"ls-walls-x": ("ls", "walls", ["x"]),
+                    "ls-cylinder": ("ls", "cylinder", ["x", "y"]),
+                    "quench-walls-xy": ("quench", "walls", ["x", "y"]),
+                    "quench-cylinder": ("quench", "cylinder", ["x", "y"])}
+CONTAINER_N = 1000
 #: Reduced pressure of the LS inputs (that of bench/jam.py).
 LS_PRESSURE = 1e5
 #: Every run stops after this many LPs or the first LP past this many seconds (it then ends
@@ -160,7 +166,7 @@ def load_input(name: str, cache: Path | None):
         return calippso.read(SHARED / SHARED_FILES[name]), None
     if name in LS_INPUTS:
         d, n, seed = LS_INPUTS[name]
-        folder = QUENCHES / "ls"
+        folder = (cache or INPUTS) / "ls"
         path = folder / f"ls_poisson_d{d}_n{n}_p{LS_PRESSURE:g}_endNone_seed{seed}.npz"
         if not path.exists():
             import generators
@@ -172,19 +178,32 @@ def load_input(name: str, cache: Path | None):
             calippso.write(made, path)
         return calippso.read(path), None
     if name in QUENCH_INPUTS:
-        n = QUENCH_INPUTS[name]
-        path = QUENCHES / f"quench_d3_n{n}_p1e-06_seed1.npz"
+        n, pressure, seed = QUENCH_INPUTS[name]
+        path = (cache or INPUTS) / f"quench_d3_n{n}_p{pressure:g}_seed{seed}.npz"
         if not path.exists():
             import generators
-            made = generators.soft_quench(generators.diameters.monodisperse(n), 3, seed=1,
-                                          target_pressure=1e-6)
+            made = generators.soft_quench(generators.diameters.monodisperse(n), 3, seed=seed,
+                                          target_pressure=pressure)
+            path.parent.mkdir(parents=True, exist_ok=True)
             np.savez(path, positions=made.packing.positions, diameters=made.packing.diameters,
                      box=made.packing.box, contacts=made.contacts)
         with np.load(path) as stored:
             hint = stored["contacts"]
         return calippso.read(path), hint
     if name in CONTAINER_INPUTS:
-        return calippso.read(SCANS / CONTAINER_INPUTS[name]), None
+        generator, kind, axes = CONTAINER_INPUTS[name]
+        path = (cache or INPUTS) / f"{name}_d3_n{CONTAINER_N}_s1.npz"
+        if not path.exists():
+            import generators
+            sizes = generators.diameters.monodisperse(CONTAINER_N)
+            boundaries = getattr(Boundaries, kind)(3, axes)
+            made = (generators.lubachevsky_stillinger(sizes, d=3, seed=1, boundaries=boundaries,
+                                                      target_pressure=LS_PRESSURE)
+                    if generator == "ls" else
+                    generators.soft_quench(sizes, 3, seed=1, boundaries=boundaries))
+            path.parent.mkdir(parents=True, exist_ok=True)
+            calippso.write(made.packing, path)
+        return calippso.read(path), None
     raise ValueError(f"unknown input {name!r}")
 
 
