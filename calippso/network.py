@@ -25,8 +25,8 @@ from .geometry.contacts import force_balance, isostaticity_gap, polish_forces, p
 from .geometry.neighbors import NEAR_CONTACT_SLACK, NeighborSearch, Pairs, shrink_to_margin
 from .certification.newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .geometry.rattlers import remove_rattlers, separate_rattlers
-from .geometry.walls import (WallRows, empty_walls, wall_equilibrium_columns, wall_ids, wall_rows_of,
-                    wall_rows_within)
+from .geometry.walls import (WallRows, empty_walls, wall_equilibrium_columns, wall_ids,
+                             wall_rows_of, wall_rows_within)
 
 __all__ = ["ContactNetwork", "Certified", "RoundoffShrink", "network_key", "network_balance",
            "overlaps_outside", "certify_network", "touching_network", "polished_forces",

@@ -16,9 +16,8 @@ PIVOT_MODES = ("network_first", "off")
 #: Values of ``pivots`` that were removed, and why (`JamSettings` raises ValueError with this
 #: text).
 REMOVED_PIVOT_MODES = {
-    "always": "pivots='always' (contact pivots in the LP loop) was removed: they certified "
-              "no run that the Newton stage did not, and cost time "
-              "(docs/notes/certification-stages.md); use the default 'network_first'",
+    "always": "pivots='always' (contact pivots in the LP loop) was removed; use the default "
+              "'network_first' or 'off'",
 }
 
 #: Names accepted by ``jam(..., interior_point=...)`` (HiGHS backend).

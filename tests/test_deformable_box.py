@@ -10,7 +10,7 @@ import pytest
 from calippso import Packing
 from calippso.io import read, write
 from calippso.geometry.periodic import (lattice_minimum_image, lattice_wrap, reduce_lattice,
-                               shortest_lattice_vector, triangular_box)
+                                        shortest_lattice_vector, triangular_box)
 
 
 def _sheared_matrix(d: int, rng) -> np.ndarray:
