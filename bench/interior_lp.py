@@ -9,11 +9,11 @@ in --cache, or files given with --input. --tile K repeats an input K times along
 axis (N K^d particles), for an LP of that size when no quench of it is at hand. Run from
 the repository root:
 
-    python bench/interior_lp.py --cases 3:1024 3:2048 3:4096 3:8192 --cache /work/cache
-    python bench/interior_lp.py --cases 3:2048 --tile 2 --cache /work/cache   # N = 16384
+    python bench/interior_lp.py --cases 3:1024 3:2048 3:4096 3:8192 --cache DIR
+    python bench/interior_lp.py --cases 3:2048 --tile 2 --cache DIR   # N = 16384
     python bench/interior_lp.py --cases 3:1024 --tolerance 1e-8 1e-10 1e-12 --json t.json
-    python bench/interior_lp.py --cases 3:8192 --threads 2 --cache /work/cache
-    python bench/interior_lp.py --cases 3:8192 --cache /work/cache --hipo hipo_system=normaleq
+    python bench/interior_lp.py --cases 3:8192 --threads 2 --cache DIR
+    python bench/interior_lp.py --cases 3:8192 --cache DIR --hipo hipo_system=normaleq
 
 --hipo KEY=VALUE sets HiGHS options on the solve (HiPO's Newton system "augmented" or
 "normaleq", its ordering "metis", "amd" or "rcm", its block size), each case once per

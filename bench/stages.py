@@ -8,8 +8,8 @@ default run never called would repeat the default run exactly: it is not run and
 
     python bench/stages.py                                  # the set (~25 min on 2 cores)
     python bench/stages.py --inputs ls-d3-n1024-s1 --variants network_first_off
-    python bench/stages.py --cache /work/cache/stages --json stages.json
-    python bench/stages.py --cache /work/cache/stages --cached-only   # the table, no run
+    python bench/stages.py --cache DIR --json stages.json
+    python bench/stages.py --cache DIR --cached-only   # the table, no run
 
 Stages and their switches (a setting where `JamSettings` has one; otherwise a module-level
 name replaced for the run, said in the table below):

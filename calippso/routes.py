@@ -252,7 +252,7 @@ class NetworkFirstSettle:
         options if wanted.
     max_refusals : int
         Stop trying after this many networks refused (each refusal costs network first's
-        rounds and pivots: seconds at N = 1024, a minute or two at N = 8192).
+        rounds and pivots: seconds at N = 1024, minutes at N = 8192).
 
     Attributes
     ----------
