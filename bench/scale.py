@@ -51,7 +51,7 @@ CHILD = textwrap.dedent("""
     import numpy as np
     import calippso
     from calippso.geometry.neighbors import NeighborSearch
-    from calippso.network import walls_near_contact
+    from calippso.geometry.contact_network import walls_near_contact
     d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
     options, generator, quench_pressure = json.loads(sys.argv[5]), sys.argv[6], sys.argv[7]
     seed, container, settle_excess = int(sys.argv[8]), sys.argv[9], int(sys.argv[10])

@@ -17,10 +17,8 @@ name replaced for the run, said in the table below):
     network_first_off   JamSettings(network_first="off")
     rounds_off          calippso.certification.network_first.MAX_ROUNDS = 1 (one round per candidate)
     restricted_lp_off   calippso.certification.network_first.lp_network refuses every candidate
-    floppy_off          calippso.certification.network_first.close_floppy_modes refuses
-    nf_pivots_off       calippso.certification.network_first.pivot_to_jamming refuses (pivots and the
-                        repair of singular networks inside network first)
-    repair_off          calippso.certification.pivots.path.repair_singular refuses (everywhere)
+    nf_pivots_off       calippso.certification.network_first.pivot_to_jamming refuses (the
+                        contact pivots inside network first)
     newton_off          JamSettings(newton=False): no Newton stage after LPs
     verify_on           JamSettings(verify_newton=True)
     cleanup_off         calippso.stages.finish._cleanup keeps the network (least-squares
@@ -65,7 +63,8 @@ LS_INPUTS = {"ls-d3-n1024-s1": (3, 1024, 1), "ls-d3-n1024-s2": (3, 1024, 2),
 #: pressure of its size (`generators.default_target_pressure`).
 QUENCH_INPUTS = {"quench-d3-n1024": (1024, 1e-6, 1), "quench-d3-n2048": (2048, 1e-6, 1),
                  "quench-d3-n4096": (4096, 1e-6, 1), "quench-d3-n8192-s1": (8192, 1e-7, 1),
-                 "quench-d3-n8192-s2": (8192, 1e-7, 2)}
+                 "quench-d3-n8192-s2": (8192, 1e-7, 2), "quench-d3-n8192-s3": (8192, 1e-7, 3),
+                 "quench-d3-n8192-s4": (8192, 1e-7, 4), "quench-d3-n8192-s5": (8192, 1e-7, 5)}
 #: Containers, N = 1000 equal spheres in d = 3, seed 1: name -> (generator, kind, axes).
 CONTAINER_INPUTS = {"ls-walls-x": ("ls", "walls", ["x"]),
                     "ls-cylinder": ("ls", "cylinder", ["x", "y"]),
@@ -85,9 +84,7 @@ VARIANTS = {
     "network_first_off": ({"network_first": "off"}, None),
     "rounds_off": ({}, "settle_candidate"),
     "restricted_lp_off": ({}, "lp_network"),
-    "floppy_off": ({}, "close_floppy_modes"),
     "nf_pivots_off": ({}, "nf_pivot_to_jamming"),
-    "repair_off": ({}, "repair_singular"),
     "newton_off": ({"newton": False}, "lps"),
     "verify_on": ({"verify_newton": True}, "newton_or_pivots"),
     "cleanup_off": ({}, "cleanup"),
@@ -103,20 +100,17 @@ def _refuse(why: str):
 
 def _keep_network(run, state, network):
     """`_cleanup` switched off: the network as it is, with its force balance."""
-    from calippso.network import network_balance
+    from calippso.geometry.contact_network import network_balance
     return network, network_balance(state.search, network, run.boundaries)
 
 
 def _patches(variant: str) -> list[tuple[object, str, object]]:
     """(module, name, replacement) for the variant's switch."""
     import calippso.certification.network_first as nf
-    import calippso.certification.pivots.path as path
     import calippso.stages.finish as finish
     return {"rounds_off": [(nf, "MAX_ROUNDS", 1)],
             "restricted_lp_off": [(nf, "lp_network", _refuse("restricted LP off"))],
-            "floppy_off": [(nf, "close_floppy_modes", _refuse("floppy modes off"))],
             "nf_pivots_off": [(nf, "pivot_to_jamming", _refuse("pivots off"))],
-            "repair_off": [(path, "repair_singular", _refuse("repair off"))],
             "cleanup_off": [(finish, "_cleanup", _keep_network)]}.get(variant, [])
 
 
@@ -131,18 +125,13 @@ def _probes(calls: Counter) -> list[tuple[object, str, object]]:
     """Counting wrappers for the functions of `VARIANTS` (default run only)."""
     import calippso.ilp as ilp
     import calippso.certification.network_first as nf
-    import calippso.certification.pivots.path as path
     import calippso.stages.finish as finish
     import calippso.stages.network_first_stage as stage
     return [(stage, "settle_candidate", _counted(calls, "settle_candidate",
                                                  stage.settle_candidate)),
             (nf, "lp_network", _counted(calls, "lp_network", nf.lp_network)),
-            (nf, "close_floppy_modes", _counted(calls, "close_floppy_modes",
-                                                nf.close_floppy_modes)),
             (nf, "pivot_to_jamming", _counted(calls, "nf_pivot_to_jamming",
                                               nf.pivot_to_jamming)),
-            (path, "repair_singular", _counted(calls, "repair_singular",
-                                               path.repair_singular)),
             (ilp, "newton_or_pivots", _counted(calls, "newton_or_pivots",
                                                ilp.newton_or_pivots)),
             (finish, "_cleanup", _counted(calls, "cleanup", finish._cleanup))]

@@ -54,7 +54,8 @@ from .errors import JammingError
 from .history import History, StopReason, status_sentence
 from .lp import LinearProgram
 from .geometry.neighbors import Pairs
-from .network import GEOMETRIC_CONTACT_GAP, NEWTON_OVERLAP_TOLERANCE, ROUNDOFF_SHRINK_MARGIN
+from .certification.certificate import NEWTON_OVERLAP_TOLERANCE
+from .geometry.contact_network import GEOMETRIC_CONTACT_GAP, ROUNDOFF_SHRINK_MARGIN
 from .geometry.packing import Packing
 from .geometry.periodic import lattice_minimum_image, lattice_wrap
 from .geometry.rattlers import remove_rattlers

@@ -35,7 +35,7 @@ from .checkpoint import Checkpoint
 from .history import History, StopReason
 from .inputs import as_packing, check_enough_particles, check_input_overlaps
 from .geometry.neighbors import NeighborSearch
-from .network import ContactNetwork
+from .geometry.contact_network import ContactNetwork
 from .certification.network_guess import check_network_hint
 from .certification.newton import pinned_coordinates
 from .geometry.packing import Packing, wrap

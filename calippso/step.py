@@ -16,7 +16,7 @@ import numpy as np
 from .complementarity import read_complementarity
 from .geometry.contacts import contact_mask, force_balance, isostaticity_gap
 from .lp import LinearProgram
-from .network import ContactNetwork
+from .geometry.contact_network import ContactNetwork
 from .geometry.rattlers import remove_rattlers
 from .settings import JamSettings
 from .solvers import LPSolution

@@ -9,8 +9,8 @@ import pytest
 
 from calippso import Packing
 from calippso.io import read, write
-from calippso.geometry.periodic import (lattice_minimum_image, lattice_wrap, reduce_lattice,
-                                        shortest_lattice_vector, triangular_box)
+from calippso.geometry.periodic import (lattice_minimum_image, reduce_lattice,
+                                        shortest_lattice_vector)
 
 
 def _sheared_matrix(d: int, rng) -> np.ndarray:

@@ -1,11 +1,11 @@
-"""`calippso.network`: the finishing stage's functions return new values and their notes."""
+"""`calippso.geometry.contact_network`: the finishing stage's functions return new values and their notes."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from calippso.geometry.neighbors import NeighborSearch
-from calippso.network import ROUNDOFF_SHRINK_MARGIN, remove_roundoff_overlaps
+from calippso.geometry.contact_network import ROUNDOFF_SHRINK_MARGIN, remove_roundoff_overlaps
 
 BOX = np.full(3, 10.0)
 

@@ -15,7 +15,8 @@ import pytest
 
 from calippso import JammingResult, Packing, jam
 from calippso.analysis import contact_statistics, gaps, run_record
-from calippso.network import ContactNetwork, certify_network
+from calippso.certification.certificate import certify_network
+from calippso.geometry.contact_network import ContactNetwork
 from calippso.geometry.packing import minimum_image
 from calippso.geometry.touching import TOUCHING_GAP, touching_outside_network
 from conftest import assert_jammed

@@ -8,7 +8,7 @@ closest contacts up to such a jump, or the fewest closest that make an isostatic
 (N_c = d N_s + 1 − zero modes, wall contacts counted) when they all lie within
 `calippso.certification.network_guess.NEAR_CONTACT_GAP` of contact. Only candidates that are exactly
 isostatic after rattler removal are returned: `jam` hands each to the Newton stage
-(`calippso.network.certify_network`), whose certificate decides, and runs the LP loop when
+(`calippso.certification.certificate.certify_network`), whose certificate decides, and runs the LP loop when
 none is certified.
 """
 

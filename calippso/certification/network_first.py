@@ -4,28 +4,24 @@ chooses the contacts, Newton solves them, and a few rounds repair what is off.
 Round 0 takes a candidate from `calippso.certification.network_guess` (pairs that may be hyperstatic by a
 few, or a few pairs off the jammed network). When ``pivots`` is on, a candidate that is
 isostatic as it is (a hint that names exactly the contacts) goes straight to Newton and the
-pivots of step 4, and one that is hypostatic (a hint that misses contacts) first closes its
-floppy modes (`calippso.certification.floppy_modes`). Each round
+pivots of step 4. Each round
 
 1. keeps the candidate pairs with a positive multiplier at the optimum of the CALiPPSO LP
    restricted to them (`calippso.certification.restricted_lp`): an isostatic network;
 2. solves its contact equations by Newton (`calippso.certification.newton`), from the input in the
-   first round and from the previous round's jamming point after that (a hypostatic
-   network, with ``pivots``, closes its floppy modes first);
+   first round and from the previous round's jamming point after that;
 3. accepts the network when every force is positive and no other pair of stable particles
    overlaps at that jamming point;
 4. when no other pair overlaps but some forces are not positive, and ``pivots`` is on,
    follows the contact pivots of `calippso.certification.pivots` from that point: each releases one such
    contact and closes the next pair on the exact geometry, until every force is positive.
-   A network that Newton cannot solve because its Jacobian is singular (isostatic by count,
-   a floppy cluster balanced by a redundant contact) is repaired by the pivots first: they
-   open the redundant contact and close the floppy mode, then go on from that vertex.
 Otherwise the next round reads the candidates at that point (the pairs within `near_gap` of
 contact: the network, the pairs that overlap, those about to close) and the restricted LP,
 linearised there, chooses again.
 
 When the candidate pairs cannot hold a positive self-stress (the restricted LP is
-unbounded), a pair that must close is missing: the round reads the pairs `WIDENING` times
+unbounded: a hint that misses contacts, or pairs that close on the way to the jamming
+point), a pair that must close is missing: the round reads the pairs `WIDENING` times
 farther from contact instead (never beyond `calippso.certification.network_guess.CANDIDATE_GAP`).
 
 The pivots of all rounds (and of all the candidates the stage tries) share one budget,
@@ -44,10 +40,10 @@ import numpy as np
 
 from ..geometry.contacts import isostaticity_gap, remove_rattlers
 from ..geometry.neighbors import NeighborSearch, Pairs
-from .floppy_modes import close_floppy_modes
+from ..geometry.packing import minimum_image
+from .certificate import NEWTON_OVERLAP_TOLERANCE
 from .network_guess import CANDIDATE_GAP, Candidate
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
-from ..geometry.packing import minimum_image
 from .pivots import PivotPath, pivot_to_jamming
 from .restricted_lp import TOO_FEW, lp_network
 
@@ -69,9 +65,6 @@ ROUND_PIVOTS = 40
 #: about a tenth of one interior-point LP of the same packing: a network that needs more is
 #: left to the LP loop, which sees all of it at once.
 STAGE_PIVOTS = 32
-#: A pair of stable particles outside the network may overlap at its jamming point by at most
-#: this relative gap (round-off); the same tolerance as the certificate of `jam`.
-OVERLAP_TOLERANCE = 1e-12
 
 
 @dataclass
@@ -162,16 +155,12 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
     """
     n = search.positions.shape[0]
     current, base, near_gap = search, candidate.pairs, candidate.near_gap
-    if not pivots and _isostaticity_gap(base, n, d) < 0:
-        return (None, "the candidate misses contacts (its floppy modes close with pivots only)",
-                None)
     budget = PivotBudget(STAGE_PIVOTS) if budget is None else budget
     pairs, opened, failure, reached = base, -1, "", None
     for round_number in range(1, MAX_ROUNDS + 1):
         if pivots and budget.remaining <= 0:
             return None, f"the stage's {STAGE_PIVOTS} contact pivots are spent ({failure})", reached
-        # an isostatic or hypostatic candidate leaves the restricted LP no choice: the
-        # floppy modes close and the pivots repair it instead
+        # an isostatic candidate leaves the restricted LP no choice: the pivots repair it
         direct = pivots and round_number == 1 and _solvable_as_it_is(pairs, n, d)
         closed, failure = ((np.ones(len(pairs), dtype=bool), "") if direct
                            else lp_network(pairs, n, d))
@@ -186,45 +175,24 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
             opened = int(len(pairs) - closed.sum())
         rattlers, kept = remove_rattlers(n, d, pairs.i[closed], pairs.j[closed])
         i, j = pairs.i[closed][kept], pairs.j[closed][kept]
-        missing = -isostaticity_gap(i.shape[0], int(n - rattlers.sum()), d)
-        closure = None
-        if missing > 0 and pivots:
-            closure, failure = close_floppy_modes(current.positions, current.diameters,
-                                                  search.box, i, j)
-            if closure is None and direct:
-                continue   # the restricted LP reads farther pairs instead
-            if closure is None:
-                return None, f"the network misses {missing} contact(s): {failure}", reached
-            i, j, rattlers, refined = closure.i, closure.j, closure.rattlers, closure.refinement
-        elif missing != 0:
+        if isostaticity_gap(i.shape[0], int(n - rattlers.sum()), d) != 0:
             return None, "the restricted LP's network is not isostatic", reached
-        else:
-            refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
-                                       ~rattlers)
-        path = None
-        if refined is None and pivots:   # a singular network: the pivots repair it first
-            path, failure = pivot_to_jamming(current.positions, current.diameters, search.box,
-                                             i, j, rattlers, max_pivots=budget.per_path())
-            budget.spend(path)
-            if path is not None:
-                i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement
+        refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
+                                   ~rattlers)
         if refined is None and direct:
             continue   # the restricted LP chooses from the same pairs
         if refined is None:
-            return None, failure if pivots else NEWTON_FAILED, reached
+            return None, NEWTON_FAILED, reached
         current = NeighborSearch(refined.positions, refined.diameters, search.box)
         reached = refined
         near = _near_pairs(current, near_gap)
         overlap = _overlaps_outside(near, i, j, rattlers).any()
-        if (path is None and pivots and (closure is not None or not refined.positive)
-                and not overlap):
+        path = None
+        if pivots and not refined.positive and not overlap:
             path, failure = pivot_to_jamming(current.positions, current.diameters,
                                              search.box, i, j, rattlers, refined=refined,
                                              max_pivots=budget.per_path())
             budget.spend(path)
-            if path is not None and closure is not None:
-                path = replace(path, closed=closure.closed,
-                               seconds=path.seconds + closure.seconds)
             if path is not None:   # the next round starts where the pivots stopped
                 i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement
                 current = NeighborSearch(refined.positions, refined.diameters, search.box)
@@ -243,19 +211,12 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
     return None, f"not settled in {MAX_ROUNDS} rounds ({failure})", reached
 
 
-def _isostaticity_gap(pairs: Pairs, n: int, d: int) -> int:
-    """Contacts less d (N_s − 1) + 1 once the rattlers of the pairs leave."""
-    rattlers, kept = remove_rattlers(n, d, pairs.i, pairs.j)
-    return isostaticity_gap(int(kept.sum()), int(n - rattlers.sum()), d)
-
-
 def _solvable_as_it_is(pairs: Pairs, n: int, d: int) -> bool:
     """Whether the pairs need no choice by the restricted LP: an isostatic network as they are
-    (no pair of a rattler), or a hypostatic one once its rattlers leave (its floppy modes
-    close, `calippso.certification.floppy_modes`)."""
+    (no pair of a rattler)."""
     rattlers, kept = remove_rattlers(n, d, pairs.i, pairs.j)
     gap = isostaticity_gap(int(kept.sum()), int(n - rattlers.sum()), d)
-    return gap < 0 or (gap == 0 and bool(kept.all()))
+    return gap == 0 and bool(kept.all())
 
 
 def _from_input(refined: Refinement, search: NeighborSearch,
@@ -288,4 +249,4 @@ def _overlaps_outside(near: Pairs, i: np.ndarray, j: np.ndarray,
     n = rattlers.shape[0]
     outside = ~np.isin(near.i * n + near.j, i * n + j)
     stable = ~rattlers[near.i] & ~rattlers[near.j]
-    return outside & stable & (near.gaps < -OVERLAP_TOLERANCE)
+    return outside & stable & (near.gaps < -NEWTON_OVERLAP_TOLERANCE)

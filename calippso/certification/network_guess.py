@@ -25,12 +25,16 @@ import numpy as np
 
 from ..geometry.contacts import isostaticity_gap, remove_rattlers
 from ..geometry.neighbors import NeighborSearch, Pairs
-from .floppy_modes import MAX_CLOSURES
 from .restricted_lp import MAX_OPEN_CONTACTS
 
 __all__ = ["CANDIDATE_GAP", "Candidate", "candidate_networks", "check_network_hint",
            "gap_splits", "fewest_not_hypostatic"]
 
+#: A hint may miss at most this many contacts (after rattler removal) to be a candidate: the
+#: restricted LP then finds its pairs too few and reads those farther from contact
+#: (`calippso.certification.network_first`). A hint that misses more is not near the jammed
+#: network.
+MAX_MISSING_CONTACTS = 64
 #: Pairs with a relative gap h below this are candidates for contacts. A near-jammed input has
 #: its contacts within ~1e-6 of closing; 1e-3 leaves room for the jump above them.
 CANDIDATE_GAP = 1e-3
@@ -123,7 +127,7 @@ def candidate_networks(search: NeighborSearch, d: int,
     list of Candidate
         Distinct candidates that are neither hypostatic after rattler removal nor
         hyperstatic by more than `MAX_EXCESS_CONTACTS` when read from the gap spectrum (a
-        hint may miss up to `calippso.certification.floppy_modes.MAX_CLOSURES` contacts): the hint's; the
+        hint may miss up to `MAX_MISSING_CONTACTS` contacts): the hint's; the
         fewest closest pairs that make an isostatic network, if all their gaps are below
         `NEAR_CONTACT_GAP`; then one per split of the gap spectrum (the `SPLITS_TRIED`
         largest jumps). Empty when nothing qualifies.
@@ -151,7 +155,7 @@ def candidate_networks(search: NeighborSearch, d: int,
         excess = _excess(candidate.pairs, n, d)
         hinted = candidate.source == "hint"
         limit = MAX_OPEN_CONTACTS if hinted else MAX_EXCESS_CONTACTS
-        lowest = -MAX_CLOSURES if hinted else 0
+        lowest = -MAX_MISSING_CONTACTS if hinted else 0
         if lowest <= excess <= limit and candidate.key not in seen:
             seen.add(candidate.key)
             unique.append(candidate)
@@ -208,8 +212,10 @@ def _near_gap(pairs: Pairs) -> float:
 
 
 def _excess(pairs: Pairs, n: int, d: int) -> int:
-    """The isostaticity gap of the pairs after rattler removal; below −`MAX_CLOSURES` (never
-    a candidate) if nothing is stable."""
+    """The isostaticity gap of the pairs after rattler removal; below
+    −`MAX_MISSING_CONTACTS` (never a candidate) if nothing is stable."""
     rattlers, kept = remove_rattlers(n, d, pairs.i, pairs.j)
     n_stable = int(n - rattlers.sum())
-    return isostaticity_gap(int(kept.sum()), n_stable, d) if n_stable else -MAX_CLOSURES - 1
+    if not n_stable:
+        return -MAX_MISSING_CONTACTS - 1
+    return isostaticity_gap(int(kept.sum()), n_stable, d)

@@ -2,9 +2,9 @@
 
 In order: a converged LP network whose forces do not balance gets the Newton certificate
 from the converged positions, else a clean-up LP (rattlers frozen); a converged network
-takes the touching pairs of a degenerate packing (`calippso.network.touching_network`);
+takes the touching pairs of a degenerate packing (`calippso.geometry.contact_network.touching_network`);
 forces that still do not balance are polished by least squares; round-off overlaps are shrunk
-away (`calippso.network.remove_roundoff_overlaps`); forces are scaled to mean 1.
+away (`calippso.geometry.contact_network.remove_roundoff_overlaps`); forces are scaled to mean 1.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import numpy as np
 
 from ..geometry.contacts import isostaticity_gap
 from ..history import StopReason, status_sentence
-from ..network import (ContactNetwork, network_balance, polished_forces,
-                       remove_roundoff_overlaps, touching_network)
+from ..geometry.contact_network import (ContactNetwork, network_balance, polished_forces,
+                                        remove_roundoff_overlaps, touching_network)
 from ..certification.newton import pinned_coordinates
 from ..geometry.packing import Packing
 from ..result import JammingResult

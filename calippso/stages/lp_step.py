@@ -17,7 +17,7 @@ import numpy as np
 from ..history import Record
 from ..lp import build_lp, largest_safe_step, select_pairs, select_walls
 from ..geometry.neighbors import NeighborSearch, Pairs
-from ..network import ContactNetwork, walls_near_contact
+from ..geometry.contact_network import ContactNetwork, walls_near_contact
 from ..geometry.packing import wrap
 from ..settings import JamSettings
 from ..solvers.policy import LPFailed

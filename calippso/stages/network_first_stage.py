@@ -24,7 +24,7 @@ import numpy as np
 
 from ..certification.container_guess import container_candidates
 from ..history import StopReason
-from ..network import ContactNetwork, network_key
+from ..geometry.contact_network import ContactNetwork, network_key
 from ..certification.network_first import (STAGE_PIVOTS, PivotBudget, SettledNetwork,
                                            settle_candidate)
 from ..certification.network_guess import Candidate, candidate_networks

@@ -1,7 +1,7 @@
 """The Newton stage: the certified jamming point of an isostatic network, and contact pivots.
 
 `newton` moves the configuration to the jamming point of a network and accepts it only with
-the certificate of `calippso.network.certify_network` (positive forces, no other overlap, a
+the certificate of `calippso.certification.certificate.certify_network` (positive forces, no other overlap, a
 non-singular Jacobian). `newton_or_pivots` is the stage of the LP loop: with
 ``crossover="off"``, a network refused only for non-positive forces is taken to the jamming
 point by contact pivots (`calippso.certification.pivots`) and certified there.
@@ -14,7 +14,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..network import ContactNetwork, certify_network
+from ..certification.certificate import certify_network
+from ..geometry.contact_network import ContactNetwork
 from ..certification.newton import MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, refine_isostatic
 from ..certification.pivots import PivotPath, describe_path, pivot_to_jamming
 from .state import LoopState, Run
@@ -69,7 +70,7 @@ def newton(run: Run, state: LoopState, network: ContactNetwork, *, retry: bool =
         Its Newton solution from the current positions, when already computed.
     guessed : bool
         It did not come from an LP's duals (nor does one with an `origin`): another
-        touching pair refuses it (`calippso.network.certify_network`).
+        touching pair refuses it (`calippso.certification.certificate.certify_network`).
 
     Returns
     -------

@@ -48,7 +48,7 @@ class LoopState:
     basis : Basis or None
         Warm start of the next LP.
     failed_networks : frozenset of str
-        Keys (`calippso.network.network_key`) of networks the Newton stage refused.
+        Keys (`calippso.geometry.contact_network.network_key`) of networks the Newton stage refused.
     wall_kicks : int
         Times a hypostatic network between walls was moved out of its layers
         (`calippso.stages.wall_kick`).

@@ -17,7 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..history import Record
-from ..network import ContactNetwork
+from ..geometry.contact_network import ContactNetwork
 from ..geometry.walls import out_of_layer_moves
 from .state import LoopState, Run
 

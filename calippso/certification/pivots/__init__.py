@@ -7,7 +7,7 @@ positive. The CALiPPSO LP at that point would move on; here the same move is mad
 exact geometry, one contact at a time, as the simplex method moves from vertex to vertex:
 
 1. **Certify.** Every force positive: the point is the jamming point (the caller still runs
-   the certificate of `calippso.network.certify_network`).
+   the certificate of `calippso.certification.certificate.certify_network`).
 2. **Release** a contact c with y_c ≤ 0 (the most negative one, or the next ones when its
    release gives no pivot; smallest pair key while the path is degenerate, Bland's rule, so
    that it cannot cycle). The network A = C ∖ c, less
@@ -31,16 +31,6 @@ cage (d unknowns and d + 1 rows: the released network becomes isostatic again). 
 cage of a particle that the release left with d contacts closes on it, the pivot is made
 again with that particle kept in the network, held by its d contacts.
 
-A start that Newton cannot solve because its Jacobian is singular (isostatic by count but
-not by rank: a floppy cluster somewhere, balanced by a redundant contact elsewhere) is
-repaired first (`repair.repair_singular`): one sparse LU of the bordered Jacobian gives its floppy
-mode t and its self-stress s (`repair.singular_vectors`); a contact that s marks as redundant opens
-(the sign of s chosen so that it opens, not overlaps), the network closes without it, and t
-is followed with Γ not decreasing until the ratio test closes a pair. That swap is the
-path's first (`Swap.repaired`), and the ordinary pivots go on from its vertex. A vertex
-whose every release leaves a singular network (Newton solved a singular network on factors
-with perturbed pivots, and its forces are not unique) is repaired the same way.
-
 Γ never decreases, so the path can only revisit a network through degenerate pivots (where
 the closing pair already touches); Bland's rule and a record of the networks seen since Γ
 last grew rule that out.
@@ -53,12 +43,11 @@ round-off, or when rattlers change the unknowns.
 """
 
 from .geometry import (MAX_NEAR_GAP, NEAR_GAP, RATIO_CANDIDATES, clear_rattlers,
-                       find_closing_pairs, least_norm_solve, onto_contacts, outside_pairs)
+                       find_closing_pairs, outside_pairs)
 from .path import CAGE_CLOSED, MAX_PIVOTS, pivot_to_jamming
-from .repair import singular_vectors
 from .vertex import DEGENERATE_STEP, PivotPath, Swap, describe_path
 
-__all__ = ["PivotPath", "Swap", "pivot_to_jamming", "describe_path", "singular_vectors",
-           "least_norm_solve", "onto_contacts", "find_closing_pairs", "outside_pairs",
+__all__ = ["PivotPath", "Swap", "pivot_to_jamming", "describe_path",
+           "find_closing_pairs", "outside_pairs",
            "clear_rattlers", "MAX_PIVOTS", "NEAR_GAP", "MAX_NEAR_GAP", "DEGENERATE_STEP",
            "RATIO_CANDIDATES", "CAGE_CLOSED"]

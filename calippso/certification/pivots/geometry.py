@@ -1,9 +1,7 @@
-"""The exact geometry under a pivot: the ratio test, the least-norm steps onto a network and
-the refined solves.
+"""The exact geometry under a pivot: the ratio test and the refined solves.
 
 `find_closing_pairs` is the ratio test along a floppy mode (Harris's choice among near ties),
-`outside_pairs` the pairs it reads; `onto_contacts` closes a network by least-norm
-Gauss–Newton steps (`least_norm_solve`); `refined_solve` refines a solve with stored factors
+`outside_pairs` the pairs it reads; `refined_solve` refines a solve with stored factors
 against the exact matrix; `clear_rattlers` moves rattlers out of the way of moved cages.
 """
 
@@ -15,15 +13,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...geometry.neighbors import NeighborSearch, Pairs
-from ...network import NEWTON_OVERLAP_TOLERANCE
-from ..newton import (MAX_CORRECTION, MAX_ITERATIONS, MAX_REFINEMENTS, REFINEMENT_TOLERANCE,
-                      RESIDUAL_TOLERANCE, STEP_TOLERANCE, Refinement, network_jacobian)
-from ...geometry.packing import minimum_image, wrap
+from ..certificate import NEWTON_OVERLAP_TOLERANCE
+from ..newton import MAX_REFINEMENTS, REFINEMENT_TOLERANCE, Refinement
 from ...geometry.rattlers import separate_rattlers
-from ..sparse_lu import Factors, factorize
+from ..sparse_lu import Factors
 
-__all__ = ["find_closing_pairs", "closing_rates", "outside_pairs", "onto_contacts",
-           "least_norm_solve", "refined_solve", "clear_rattlers", "rattlers_out_of_the_way",
+__all__ = ["find_closing_pairs", "closing_rates", "outside_pairs",
+           "refined_solve", "clear_rattlers", "rattlers_out_of_the_way",
            "NEAR_GAP", "NEAR_GAP_WIDENING", "MAX_NEAR_GAP", "RATTLER_REACH", "CAGE_GAP",
            "HARRIS_SLACK", "RATIO_CANDIDATES"]
 
@@ -99,90 +95,8 @@ def refined_solve(matrix: sp.csr_matrix, factors: Factors, rhs: np.ndarray,
     return None
 
 
-def least_norm_solve(jacobian: sp.csr_matrix, rhs: np.ndarray,
-                     factors: Factors | None = None) -> tuple[np.ndarray, Factors] | None:
-    """The least-norm solution t of J t = rhs, shape (columns,), from the sparse symmetric
-    system [[I, Jᵀ], [J, 0]] [t; λ] = [0; rhs], and the factors that gave it: `factors` (of
-    a nearby system) when their refined solve reaches round-off, else new ones. None when
-    the system is singular (the rows of J are dependent: a self-stress)."""
-    columns = jacobian.shape[1]
-    system = sp.bmat([[sp.identity(columns), jacobian.T], [jacobian, None]], format="csc")
-    rows = system.tocsr()
-    full_rhs = np.concatenate([np.zeros(columns), rhs])
-    if factors is not None:
-        solution = refined_solve(rows, factors, full_rhs)
-        if solution is not None:
-            return solution[:columns], factors
-    factors = factorize(system, strict=False)
-    solution = None if factors is None else refined_solve(rows, factors, full_rhs)
-    return None if solution is None else (solution[:columns], factors)
-
-
-def onto_contacts(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                  i: np.ndarray, j: np.ndarray, stable: np.ndarray,
-                  gamma: float | None = None) -> tuple[np.ndarray, float] | None:
-    """The configuration nearest to `positions` at which every pair (i, j) touches, by
-    least-norm Gauss–Newton steps (`least_norm_solve`).
-
-    Parameters
-    ----------
-    positions : ndarray, shape (N, d)
-        Centres (mean diameters); the first stable particle stays pinned.
-    diameters : ndarray, shape (N,)
-    box : ndarray, shape (d,)
-    i, j : ndarray, shape (M,), int
-        Pairs of stable particles, with independent rows (at most as many as unknowns).
-    stable : ndarray, shape (N,), bool
-    gamma : float or None
-        The inflation at which the pairs touch (|r_c|²/σ_c² = Γ); None: Γ is an unknown too
-        (each step is least-norm in positions and Γ), from 1.
-
-    Returns
-    -------
-    (ndarray, float) or None
-        The positions, shape (N, d), wrapped into the box, and Γ, once every
-        | |r_c|²/σ_c² − Γ | ≤ `RESIDUAL_TOLERANCE`; None when the steps exceed
-        `MAX_CORRECTION`, do not converge in `MAX_ITERATIONS`, or the rows are dependent.
-    """
-    d = positions.shape[1]
-    movable = np.flatnonzero(stable)[1:]
-    sigma = 0.5 * (diameters[i] + diameters[j])
-    moved = positions.copy()
-    inflation = 1.0 if gamma is None else gamma
-    factors = None
-
-    def residual_and_vectors() -> tuple[np.ndarray, np.ndarray]:
-        vectors = minimum_image(moved[i] - moved[j], box)
-        return np.einsum("md,md->m", vectors, vectors) / sigma**2 - inflation, vectors
-
-    for _ in range(MAX_ITERATIONS):
-        residual, vectors = residual_and_vectors()
-        if float(np.abs(residual).max(initial=0.0)) <= RESIDUAL_TOLERANCE:
-            return wrap(moved, box), inflation
-        jacobian = network_jacobian(vectors, sigma, i, j, stable)
-        if gamma is not None:   # Γ held: its column leaves
-            jacobian = jacobian[:, :-1].tocsr()
-        solved = least_norm_solve(jacobian, -residual, factors)
-        if solved is None:
-            return None
-        correction, factors = solved
-        shift = correction[:movable.size * d]
-        largest = float(np.abs(shift).max(initial=0.0))
-        if not largest <= MAX_CORRECTION:
-            return None
-        moved[movable] += shift.reshape(-1, d)
-        if gamma is None:
-            inflation += float(correction[-1])
-        if largest < STEP_TOLERANCE:
-            residual, _ = residual_and_vectors()
-            worst = float(np.abs(residual).max(initial=0.0))
-            return (wrap(moved, box), inflation) if worst <= RESIDUAL_TOLERANCE else None
-    return None
-
-
 def find_closing_pairs(search: NeighborSearch, keys: np.ndarray, stable: np.ndarray,
-                       mode: np.ndarray, gamma_rate: float = 1.0
-                       ) -> tuple[Pairs, np.ndarray, np.ndarray] | None:
+                       mode: np.ndarray) -> tuple[Pairs, np.ndarray, np.ndarray] | None:
     """The ratio test: the pairs of stable particles outside a network (pair keys
     i N + j, shape (M,)) that close along its floppy mode, in the order to try them
     (Harris's choice first, `_harris_choice`, then by step and key).
@@ -194,11 +108,9 @@ def find_closing_pairs(search: NeighborSearch, keys: np.ndarray, stable: np.ndar
     Parameters
     ----------
     mode : ndarray, shape (N, d)
-        The displacement of every particle per unit step (mean diameters).
-    gamma_rate : float
-        dΓ per unit step (Γ relative to the inflation of `search`'s diameters): 1 for a mode
-        normalised to dΓ = 1, the steps being inflations; a singular network's null vector
-        (`repair_singular`) may have a small or vanishing one.
+        The displacement of every particle per unit inflation (mean diameters): the floppy
+        mode normalised to dΓ = 1, so that the steps are inflations (Γ relative to the
+        inflation of `search`'s diameters).
 
     Returns
     -------
@@ -213,42 +125,42 @@ def find_closing_pairs(search: NeighborSearch, keys: np.ndarray, stable: np.ndar
     near_gap = NEAR_GAP
     while True:
         near = outside_pairs(search, keys, stable, near_gap)
-        steps = _closing_steps(near, mode, gamma_rate)
+        steps = _closing_steps(near, mode)
         order = np.lexsort((near.i * n + near.j, steps))   # smallest step, then Bland
         order = order[np.isfinite(steps[order])]
-        if order.size and _reach(steps[order[0]], mode, search, gamma_rate) < near_gap:
+        if order.size and _reach(steps[order[0]], mode, search) < near_gap:
             break
         if near_gap >= widest:
             return None
         near_gap = min(near_gap * NEAR_GAP_WIDENING, widest)
-    first = _harris_choice(near, mode, steps, order, gamma_rate)
+    first = _harris_choice(near, mode, steps, order)
     return near, steps, np.concatenate([[first], order[order != first]])
 
 
 def _harris_choice(pairs: Pairs, mode: np.ndarray, steps: np.ndarray,
-                   order: np.ndarray, gamma_rate: float = 1.0) -> int:
+                   order: np.ndarray) -> int:
     """The pair that closes first, by Harris's ratio test: among the pairs that close before
     the smallest step relaxed by `HARRIS_SLACK` (pairs within round-off of contact close
     together), the one that closes fastest along the mode, so that the new network is the
     best conditioned; ties to the smallest pair key (`order` is by step, then key)."""
-    rates = -closing_rates(pairs.subset(order), mode, gamma_rate)
+    rates = -closing_rates(pairs.subset(order), mode)
     phi = (pairs.distances[order] / pairs.sigma[order]) ** 2 - 1.0
     relaxed = float(np.min((np.maximum(phi, 0.0) + HARRIS_SLACK) / rates))
     within = steps[order] <= relaxed
     return int(order[np.flatnonzero(within)[np.argmax(rates[within])]])
 
 
-def closing_rates(pairs: Pairs, mode: np.ndarray, gamma_rate: float = 1.0) -> np.ndarray:
-    """dΦ_q per unit step along a mode whose Γ grows by `gamma_rate` per step, shape (P,):
+def closing_rates(pairs: Pairs, mode: np.ndarray) -> np.ndarray:
+    """dΦ_q per unit inflation along a mode normalised to dΓ = 1, shape (P,):
     Φ_q = |r_q|²/σ_q² − Γ (negative: closing)."""
     relative = mode[pairs.i] - mode[pairs.j]
-    return 2.0 * np.einsum("pd,pd->p", pairs.vectors, relative) / pairs.sigma**2 - gamma_rate
+    return 2.0 * np.einsum("pd,pd->p", pairs.vectors, relative) / pairs.sigma**2 - 1.0
 
 
-def _closing_steps(pairs: Pairs, mode: np.ndarray, gamma_rate: float = 1.0) -> np.ndarray:
+def _closing_steps(pairs: Pairs, mode: np.ndarray) -> np.ndarray:
     """The step δ_q = Φ_q / (−dΦ_q/dstep) at which each pair closes along the mode
     (linearised), shape (P,); +inf for pairs that open. Pairs that already touch close at 0."""
-    rates = closing_rates(pairs, mode, gamma_rate)
+    rates = closing_rates(pairs, mode)
     phi = (pairs.distances / pairs.sigma) ** 2 - 1.0
     steps = np.full(len(pairs), np.inf)
     closing = rates < 0
@@ -256,13 +168,12 @@ def _closing_steps(pairs: Pairs, mode: np.ndarray, gamma_rate: float = 1.0) -> n
     return steps
 
 
-def _reach(step: float, mode: np.ndarray, search: NeighborSearch,
-           gamma_rate: float = 1.0) -> float:
+def _reach(step: float, mode: np.ndarray, search: NeighborSearch) -> float:
     """An upper bound on how much a relative gap can shrink over a step along the mode: the
     growth of the diameters plus twice the largest move, relative to the smallest
     diameter."""
     largest_move = float(np.sqrt(np.einsum("nd,nd->n", mode, mode)).max(initial=0.0))
-    return step * (0.5 * abs(gamma_rate) + 2.0 * largest_move / float(search.diameters.min()))
+    return step * (0.5 + 2.0 * largest_move / float(search.diameters.min()))
 
 
 def outside_pairs(search: NeighborSearch, keys: np.ndarray, stable: np.ndarray,

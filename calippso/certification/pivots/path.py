@@ -11,7 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...geometry.neighbors import NeighborSearch
-from ...network import NEWTON_OVERLAP_TOLERANCE
+from ..certificate import NEWTON_OVERLAP_TOLERANCE
 from ..newton import (MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, network_jacobian,
                       refine_isostatic)
 from ...geometry.packing import minimum_image
@@ -19,7 +19,6 @@ from ...geometry.rattlers import remove_rattlers
 from ..sparse_lu import Factors, factorize
 from .geometry import (CAGE_GAP, NEAR_GAP, RATIO_CANDIDATES, closing_rates, find_closing_pairs,
                        outside_pairs, rattlers_out_of_the_way, refined_solve)
-from .repair import repair_singular
 from .vertex import DEGENERATE_STEP, Basis, PivotPath, Swap, Vertex
 
 __all__ = ["pivot_to_jamming", "MAX_PIVOTS", "REJOIN_TRIES", "CAGE_CLOSED",
@@ -35,8 +34,7 @@ REJOIN_TRIES = 2
 #: the particles that the release leaves with d contacts kept in the network).
 CAGE_CLOSED = "a rattler's cage closed along the floppy mode"
 #: Why a pivot failed when the network without the released contact is singular (Γ cannot
-#: grow along its floppy modes); when every release fails so, the vertex's own network is
-#: singular and is repaired (`repair_singular`).
+#: grow along its floppy modes).
 SINGULAR_RELEASE = "the network without the released contact is singular"
 #: Contacts with non-positive forces tried in turn (most negative first) when releasing one
 #: gives no pivot: its released network is singular (a floppy cluster held by a redundant
@@ -60,12 +58,10 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         An isostatic network between stable particles, M = d (N_s − 1) + 1, i < j.
     rattlers : ndarray, shape (N,), bool
     refined : Refinement, optional
-        Newton's solution of the network from `positions`, when already computed. Without
-        it Newton solves the network; when it cannot (a singular Jacobian), the network is
-        repaired (`repair_singular`), and that repair is the path's first pivot. A vertex
-        whose every release leaves a singular network is repaired the same way.
+        Newton's solution of the network from `positions`, when already computed; without
+        it Newton solves the network.
     max_pivots : int
-        Pivots taken at most (a repair counts as one).
+        Pivots taken at most.
 
     Returns
     -------
@@ -74,8 +70,7 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         or where it stopped and why: the network became singular, a floppy mode closes no
         pair near contact, a rattler's cage closed, or `max_pivots` were taken (a
         `PivotPath` with ``jammed=False`` once a pivot was made, None when the start itself
-        is refused: another pair overlaps there, or Newton fails and the network is not
-        singular or its repair fails).
+        is refused: another pair overlaps there, or Newton cannot solve its network).
     """
     began = time.perf_counter()
     i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)
@@ -84,23 +79,18 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     swaps: list[Swap] = []
     if refined is None:
         refined = refine_isostatic(positions, diameters, box, i, j, stable)
-    if refined is None:   # a singular network has no Newton point: repair it
-        repaired, failure = repair_singular(positions, diameters, box, i, j, stable)
-        if repaired is None:
-            return None, f"{NEWTON_FAILED}; no repair: {failure}"
-        vertex, swap, factorizations = repaired
-        swaps.append(swap)
-    else:
-        refined = rattlers_out_of_the_way(
-            NeighborSearch(refined.positions, refined.diameters, box), refined, stable)
-        if refined is None:
-            return None, "a rattler overlaps its cage at the start"
-        basis = (None if refined.factorization is None
-                 else Basis(*refined.factorization, stable))
-        vertex = Vertex(i, j, stable, refined, basis)
-        factorizations = refined.factorizations
+    if refined is None:
+        return None, NEWTON_FAILED
+    refined = rattlers_out_of_the_way(
+        NeighborSearch(refined.positions, refined.diameters, box), refined, stable)
+    if refined is None:
+        return None, "a rattler overlaps its cage at the start"
+    basis = (None if refined.factorization is None
+             else Basis(*refined.factorization, stable))
+    vertex = Vertex(i, j, stable, refined, basis)
+    factorizations = refined.factorizations
     seen = {_network_digest(vertex)}
-    degenerate = bool(swaps) and swaps[0].growth <= DEGENERATE_STEP
+    degenerate = False
 
     def ended(jammed: bool) -> PivotPath:
         return PivotPath(vertex.i, vertex.j, ~vertex.stable,
@@ -118,7 +108,6 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
             return ended(True), ""
         if len(swaps) >= max_pivots:
             return ended(False), f"no jamming point within {max_pivots} pivots"
-        failures = set()
         for released in _leaving_contacts(vertex, bland=degenerate)[:LEAVING_TRIES]:
             step, failure = _pivot(search, vertex, int(released))
             if step is None and failure == CAGE_CLOSED:
@@ -126,14 +115,6 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
                 step, failure = _pivot(search, vertex, int(released), attached=True)
             if step is not None:
                 break
-            failures.add(failure)
-        if step is None and failures == {SINGULAR_RELEASE}:
-            # every release leaves a singular network: the vertex's own is singular (Newton
-            # ran on factors with perturbed pivots, and its forces are not unique)
-            refinement = vertex.refinement
-            step, why = repair_singular(refinement.positions, refinement.diameters, box,
-                                         vertex.i, vertex.j, vertex.stable)
-            failure = failure if step is not None else f"{failure}; no repair: {why}"
         if step is None:
             return (ended(False) if swaps else None), failure
         next_vertex, swap, solves = step

@@ -49,11 +49,6 @@ class Swap:
     rejoined : int
         Rattlers whose cage closed along the floppy mode (they join the network with d + 1
         contacts; `closed` is the first of them).
-    repaired : bool
-        The swap repaired a singular network (`repair_singular`: the start, or a vertex
-        that Newton solved on factors with perturbed pivots): `released` is the
-        redundant contact opened, `closed` the pair that closed the floppy mode, and
-        `growth` is measured from where the network without the released contact closes.
     """
 
     released: tuple[int, int]
@@ -61,7 +56,6 @@ class Swap:
     growth: float
     new_rattlers: int
     rejoined: int = 0
-    repaired: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,7 +72,7 @@ class PivotPath:
         The jamming point (positions, diameters, forces), with its growth and largest
         displacement measured from the start of the path.
     swaps : tuple of Swap
-        The pivots in order (with the repairs of singular networks, `Swap.repaired`).
+        The pivots in order.
     factorizations : int
         Sparse LU factorisations (directions and Newton solves).
     seconds : float
@@ -86,9 +80,6 @@ class PivotPath:
     jammed : bool
         Every force is positive: the path reached a jamming point. False: the path stopped
         (why is returned beside it) at this vertex, no lower in Γ than its start.
-    closed : tuple of (int, int)
-        The pairs that closed the floppy modes of a hypostatic start before the first pivot
-        (`calippso.certification.floppy_modes`), in order; empty when the start was isostatic.
     """
 
     i: np.ndarray
@@ -99,7 +90,6 @@ class PivotPath:
     factorizations: int
     seconds: float
     jammed: bool = True
-    closed: tuple[tuple[int, int], ...] = ()
 
     @property
     def pivots(self) -> int:
@@ -110,11 +100,6 @@ class PivotPath:
     def degenerate(self) -> int:
         """Pivots that gained no inflation."""
         return sum(swap.growth <= DEGENERATE_STEP for swap in self.swaps)
-
-    @property
-    def repairs(self) -> int:
-        """Swaps that repaired a singular network (`Swap.repaired`)."""
-        return sum(swap.repaired for swap in self.swaps)
 
     @property
     def largest_growth(self) -> float:
@@ -197,24 +182,14 @@ class Basis:
 
 
 def describe_path(path: PivotPath) -> str:
-    """One clause on a path for the run's notes: floppy modes closed, pivots (and the repairs
-    of a singular network among them), time, contacts swapped, largest growth of one
-    pivot."""
-    closed = ""
-    if path.closed:
-        pairs = ", ".join(f"{pair}" for pair in path.closed[:LISTED_SWAPS])
-        more = f" and {len(path.closed) - LISTED_SWAPS} more" if len(
-            path.closed) > LISTED_SWAPS else ""
-        closed = (f"{len(path.closed)} floppy mode(s) of the hypostatic network closed "
-                  f"(pairs {pairs}{more}), then ")
+    """One clause on a path for the run's notes: pivots, time, contacts swapped, largest
+    growth of one pivot."""
     listed = ", ".join(f"{swap.released}->{swap.closed}" for swap in path.swaps[:LISTED_SWAPS])
     more = f" and {path.pivots - LISTED_SWAPS} more" if path.pivots > LISTED_SWAPS else ""
     degenerate = f" ({path.degenerate} degenerate)" if path.degenerate else ""
-    repaired = (f"singular Jacobian ({path.repairs} of them opened a redundant contact and "
-                f"closed a floppy mode) and its " if path.repairs else "")
     if not path.pivots:
-        return f"{closed}no contact pivot was needed ({path.seconds:.2f} s)"
-    return (f"{closed}{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s "
-            f"repaired the network's {repaired}non-positive forces (released->closed: "
+        return f"no contact pivot was needed ({path.seconds:.2f} s)"
+    return (f"{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s "
+            f"repaired the network's non-positive forces (released->closed: "
             f"{listed}{more}; largest growth of one pivot sqrt(Gamma)-1 = "
             f"{path.largest_growth:.1e})")

@@ -1,12 +1,13 @@
-"""The contact network of a packing, its certificate, and the stage that finishes a run.
+"""The contact network of a packing as a value, and the final repairs of its forces.
 
 `ContactNetwork` is a value: the contacts between stable particles, their forces, the
-rattlers. The functions here take a configuration (a `NeighborSearch`, lengths in mean
-diameters) and a network and return new values, never changing their arguments; when they
-repair something they also return the note that says so, for the run's status.
+rattlers, the wall contacts. The functions here take a configuration (a `NeighborSearch`,
+lengths in mean diameters) and a network and return new values, never changing their
+arguments; when they repair something they also return the note that says so, for the
+run's status. The certificate of a network's jamming point is
+`calippso.certification.certificate`.
 
-- `certify_network`: the jamming point of an isostatic network by Newton's method
-  (`calippso.certification.newton`), accepted only with its certificate (positive forces, no other overlap).
+- `network_key`, `network_balance`: a network's identity and its force balance.
 - `touching_network`: at a degenerate jamming point, the touching pairs as the network when
   the LP duals missed contacts.
 - `polished_forces`: forces refined by least squares on the equilibrium equations.
@@ -20,25 +21,20 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .geometry.boundaries import Boundaries
-from .geometry.contacts import force_balance, isostaticity_gap, polish_forces, positive_self_stress
-from .geometry.neighbors import NEAR_CONTACT_SLACK, NeighborSearch, Pairs, shrink_to_margin
-from .certification.newton import NEWTON_FAILED, Refinement, refine_isostatic
-from .geometry.rattlers import remove_rattlers, separate_rattlers
-from .geometry.walls import (WallRows, empty_walls, wall_equilibrium_columns, wall_ids,
-                             wall_rows_of, wall_rows_within)
+from .boundaries import Boundaries
+from .contacts import force_balance, isostaticity_gap, polish_forces, positive_self_stress
+from .neighbors import NEAR_CONTACT_SLACK, NeighborSearch, shrink_to_margin
+from .rattlers import remove_rattlers
+from .walls import (WallRows, empty_walls, wall_equilibrium_columns, wall_rows_of,
+                    wall_rows_within)
 
-__all__ = ["ContactNetwork", "Certified", "RoundoffShrink", "network_key", "network_balance",
-           "overlaps_outside", "certify_network", "touching_network", "polished_forces",
-           "remove_roundoff_overlaps", "walls_near_contact", "NEWTON_OVERLAP_TOLERANCE",
-           "GEOMETRIC_CONTACT_GAP",
+__all__ = ["ContactNetwork", "RoundoffShrink", "network_key", "network_balance",
+           "wall_contact_geometry", "touching_network", "polished_forces",
+           "remove_roundoff_overlaps", "walls_near_contact", "GEOMETRIC_CONTACT_GAP",
            "ROUNDOFF_SHRINK_MARGIN"]
 
-#: A pair outside the contact network may overlap by at most this relative gap at a Newton
-#: solution (round-off); more means the network is not the jammed one.
-NEWTON_OVERLAP_TOLERANCE = 1e-12
 #: Pairs closer than this relative gap count as touching (`touching_network`, and the pairs a
-#: guessed network must not leave out, `certify_network`).
+#: guessed network must not leave out, `calippso.certification.certificate`).
 GEOMETRIC_CONTACT_GAP = 1e-11
 #: `remove_roundoff_overlaps` leaves the closest pair this relative gap (four units of
 #: round-off).
@@ -132,172 +128,15 @@ def _wall_part(search: NeighborSearch, network: ContactNetwork,
     `search` (`calippso.geometry.contacts.force_balance`), or None without any."""
     if network.walls is None:
         return None
-    walls = _wall_geometry(search, network, boundaries)
+    walls = wall_contact_geometry(search, network, boundaries)
     return walls.particle, walls.normals, network.wall_forces
 
 
-def _wall_geometry(search: NeighborSearch, network: ContactNetwork,
-                   boundaries: Boundaries | None) -> WallRows:
+def wall_contact_geometry(search: NeighborSearch, network: ContactNetwork,
+                          boundaries: Boundaries | None) -> WallRows:
     """The geometry of the network's wall contacts in the configuration of `search`."""
     return wall_rows_of(search.positions, search.diameters, search.box, network.wall_particle,
                         network.wall, () if boundaries is None else boundaries.cylinder_axes)
-
-
-def overlaps_outside(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                     contact_keys: np.ndarray, periodic: np.ndarray | None = None
-                     ) -> tuple[NeighborSearch, Pairs, np.ndarray]:
-    """The neighbour search of a configuration, its pairs near contact, and which of those
-    overlap beyond `NEWTON_OVERLAP_TOLERANCE` without being a contact.
-
-    Parameters
-    ----------
-    positions : ndarray, shape (N, d)
-    diameters : ndarray, shape (N,)
-    box : ndarray, shape (d,)
-    contact_keys : ndarray, shape (M,), int64
-        Sorted keys i N + j of the contacts.
-    periodic : ndarray, shape (d,), bool, optional
-        The periodic axes; None: all of them.
-
-    Returns
-    -------
-    search : NeighborSearch
-    close : Pairs
-        `NeighborSearch.pairs_near_contact`.
-    overlapping : ndarray, shape (len(close),), bool
-    """
-    search = NeighborSearch(positions, diameters, box, periodic)
-    close = search.pairs_near_contact()
-    is_contact = np.isin(close.i * positions.shape[0] + close.j, contact_keys)
-    return search, close, ~is_contact & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
-
-
-@dataclass(frozen=True, eq=False)
-class Certified:
-    """A certified jamming point (`certify_network`).
-
-    Attributes
-    ----------
-    positions : ndarray, shape (N, d)
-        The jamming point's centres (mean diameters).
-    diameters : ndarray, shape (N,)
-    search : NeighborSearch
-        The neighbour search of that configuration.
-    network : ContactNetwork
-        The network with the certificate's self-stress as forces (``from_lp=False``).
-    balance : float
-        Its force balance (`network_balance`).
-    min_gap : float
-        Smallest relative gap of the configuration (+inf if no pair is near contact).
-    refinement : Refinement
-        Newton's own account (iterations, factorisations, residual, growth, move).
-    """
-
-    positions: np.ndarray
-    diameters: np.ndarray
-    search: NeighborSearch
-    network: ContactNetwork
-    balance: float
-    min_gap: float
-    refinement: Refinement
-
-
-def certify_network(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                    network: ContactNetwork, *, guessed: bool = False,
-                    refined: Refinement | None = None,
-                    boundaries: Boundaries | None = None) -> tuple[Certified | None, str]:
-    """Solve the contact equations of an isostatic network and certify the solution.
-
-    Certified means: every force positive (wall contacts included) and no other pair
-    overlapping, nor any other particle crossing a wall, beyond `NEWTON_OVERLAP_TOLERANCE`
-    (see `calippso.certification.newton`). In a periodic box, rattlers that the moved cages now overlap are
-    first moved out of the way (`calippso.geometry.rattlers.separate_rattlers`). A `guessed` network
-    (not an LP's) must also be the whole contact network: another touching pair of stable
-    particles, or a stable particle touching a wall outside the network (h <
-    `GEOMETRIC_CONTACT_GAP`), means a degenerate (hyperstatic) packing, left to the LPs.
-
-    Parameters
-    ----------
-    positions : ndarray, shape (N, d)
-        Current centres (mean diameters).
-    diameters : ndarray, shape (N,)
-    box : ndarray, shape (d,)
-    network : ContactNetwork
-        Its forces are not used; its wall contacts are part of the network.
-    guessed : bool
-        The network was guessed from the input, not read from an LP's duals.
-    refined : Refinement, optional
-        Newton's solution from `positions`, when already computed (`calippso.certification.network_first`).
-    boundaries : Boundaries, optional
-        The box's boundaries (`calippso.geometry.boundaries`); None: periodic along every axis.
-
-    Returns
-    -------
-    (Certified or None, str)
-        The certified point and "", or None and why it failed.
-    """
-    n = positions.shape[0]
-    periodic = None if boundaries is None or boundaries.is_periodic else boundaries.periodic
-    if refined is None:
-        refined = refine_isostatic(positions, diameters, box, network.i, network.j,
-                                   ~network.rattlers, wall_particle=network.wall_particle,
-                                   wall=network.wall, boundaries=boundaries)
-    if refined is None:
-        return None, NEWTON_FAILED
-    order = np.sort(network.i * n + network.j)
-    moved = refined.positions
-    search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order,
-                                                  periodic)
-    near_walls = walls_near_contact(search, boundaries)
-    crossing = _crossing(near_walls, network)
-    if refined.positive and (overlapping.any() or crossing.any()) and np.all(
-            network.rattlers[close.i[overlapping]] | network.rattlers[close.j[overlapping]]) \
-            and np.all(network.rattlers[near_walls.particle[crossing]]):
-        # only rattlers overlap: the cage moved under a rattler that touched it
-        separated = separate_rattlers(moved, refined.diameters, box, network.rattlers,
-                                      boundaries=boundaries)
-        if separated is not None:
-            moved = separated
-            search, close, overlapping = overlaps_outside(moved, refined.diameters, box, order,
-                                                          periodic)
-            near_walls = walls_near_contact(search, boundaries)
-    outside_walls = _outside_network(near_walls, network)
-    crossing = int(np.count_nonzero(_crossing(near_walls, network)))
-    touching = 0
-    if guessed:
-        stable = ~network.rattlers
-        outside = ~np.isin(close.i * n + close.j, order)
-        touching = int(np.count_nonzero(outside & (close.gaps < GEOMETRIC_CONTACT_GAP)
-                                        & stable[close.i] & stable[close.j]))
-        touching += int(np.count_nonzero(outside_walls & (near_walls.gaps < GEOMETRIC_CONTACT_GAP)
-                                         & stable[near_walls.particle]))
-    if not refined.positive:
-        return None, "a non-positive force"
-    if overlapping.any():
-        return None, f"{int(overlapping.sum())} other pair(s) would overlap"
-    if crossing:
-        return None, f"{crossing} other particle(s) would cross a wall"
-    if touching:
-        return None, f"{touching} other pair(s) touch (a hyperstatic packing)"
-    current = search.pairs_of(network.i, network.j)
-    walls = _wall_geometry(search, network, boundaries)
-    normalization = float(refined.forces @ (current.sigma**2 / current.distances)
-                          + refined.wall_forces @ (walls.sigma**2 / walls.distances))
-    certified = replace(network, forces=refined.forces, wall_forces=refined.wall_forces,
-                        normalization=normalization, from_lp=False)
-    return Certified(moved, refined.diameters, search, certified,
-                     network_balance(search, certified, boundaries), close.smallest_gap(),
-                     refined), ""
-def _outside_network(walls: WallRows, network: ContactNetwork) -> np.ndarray:
-    """Which particle–wall pairs are not wall contacts of the network, shape (K,), bool."""
-    n_walls = wall_ids(walls.normals.shape[1])
-    return ~np.isin(walls.keys(n_walls), network.wall_particle * n_walls + network.wall)
-
-
-def _crossing(walls: WallRows, network: ContactNetwork) -> np.ndarray:
-    """Which particle–wall pairs outside the network cross their wall beyond
-    `NEWTON_OVERLAP_TOLERANCE`, shape (K,), bool."""
-    return _outside_network(walls, network) & (walls.gaps < -NEWTON_OVERLAP_TOLERANCE)
 
 
 def touching_network(search: NeighborSearch, network: ContactNetwork, balance: float, d: int,
@@ -381,7 +220,7 @@ def polished_forces(search: NeighborSearch, network: ContactNetwork, balance: fl
     weights = geometry.sigma**2 / geometry.distances
     forces, extra = network.forces, None
     if network.walls is not None:
-        walls = _wall_geometry(search, network, boundaries)
+        walls = wall_contact_geometry(search, network, boundaries)
         extra = wall_equilibrium_columns(n, walls.particle, walls.normals)
         weights = np.concatenate([weights, walls.sigma**2 / walls.distances])
         forces = np.concatenate([forces, network.wall_forces])
