@@ -24,6 +24,10 @@ name replaced for the run, said in the table below):
     cleanup_off         calippso.stages.finish._cleanup keeps the network (least-squares
                         polish only)
     interior_on         JamSettings(crossover="off"): the large-N interior engine at this N
+    vertex_lp_loop      JamSettings(network_first="off", crossover="on"): the LP loop alone
+                        with vertex LPs, what the large-N engine replaces from 20,000
+                        columns on (compare with network_first_off, which takes the engine
+                        there)
 
 Per run: certified (converged), stop reason, φ_J, contacts, LPs, wall time, and the stages of
 the history (records per stage). With ``--cache`` every input and every run's figures are kept,
@@ -89,6 +93,7 @@ VARIANTS = {
     "verify_on": ({"verify_newton": True}, "newton_or_pivots"),
     "cleanup_off": ({}, "cleanup"),
     "interior_on": ({"crossover": "off"}, "lps"),
+    "vertex_lp_loop": ({"network_first": "off", "crossover": "on"}, None),
 }
 
 
@@ -296,8 +301,9 @@ ALL_INPUTS = [*SHARED_FILES, *LS_INPUTS, *QUENCH_INPUTS, *CONTAINER_INPUTS]
 #: The set of docs/notes/certification-stages.md (the slow FB input at φ ≈ 0.60 and the
 #: third LS seed are left out of the default).
 DEFAULT_INPUTS = [name for name in ALL_INPUTS if name not in ("mono-fb0.6", "ls-d3-n1024-s3")]
-#: Variants of that note (verify_on and interior_on on request).
-DEFAULT_VARIANTS = [name for name in VARIANTS if name not in ("verify_on", "interior_on")]
+#: Variants of that note (verify_on, interior_on and vertex_lp_loop on request).
+DEFAULT_VARIANTS = [name for name in VARIANTS
+                    if name not in ("verify_on", "interior_on", "vertex_lp_loop")]
 
 
 def main() -> None:

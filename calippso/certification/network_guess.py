@@ -58,8 +58,8 @@ NEAR_PAIR_FACTOR = 32.0
 #: A candidate read from the gap spectrum that is hyperstatic by more than this many contacts
 #: is not tried: such a network is a crystal or a compressed state, not a jamming point with
 #: a few near-contacts. (A hint is tried whatever its excess, up to the limit of
-#: `calippso.certification.restricted_lp`, and when it misses contacts, up to the floppy modes that
-#: `calippso.certification.floppy_modes` closes.)
+#: `calippso.certification.restricted_lp`, and when it misses contacts, up to
+#: `MAX_MISSING_CONTACTS` of them.)
 MAX_EXCESS_CONTACTS = 12
 
 

@@ -1,7 +1,8 @@
-"""Final stage of `jam`: the jamming point of a rigid contact network, by Newton's method.
+"""The jamming point of an isostatic contact network, by Newton's method (the solve step).
 
-Once the LPs have found the contact network and it is isostatic (as many contacts N_c as
-unknowns d (N_s − 1) + 1), the jamming point solves the square nonlinear system
+Once a network is known (read from an LP's duals, or guessed and settled by network first)
+and it is isostatic (as many contacts N_c as unknowns d (N_s − 1) + 1), the jamming point
+solves the square nonlinear system
 
     |r_c|² / σ_c² = Γ      for every contact c = (i, j), with r_c = x_i − x_j (fixed image),
 
