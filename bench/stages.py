@@ -4,9 +4,10 @@ on and off.
 For each input the default run comes first; each variant then switches one stage off (or, for
 a stage that is off by default, on) and runs `calippso.jam` again. A variant whose stage the
 default run never called would repeat the default run exactly: it is not run and its row says
-"not reached". Run from the repository root:
+"not reached". The runs of the set take about an hour on 2 cores once its inputs are made;
+making each N = 8192 quench takes 10–15 minutes more. Run from the repository root:
 
-    python bench/stages.py                                  # the set (~25 min on 2 cores)
+    python bench/stages.py                                  # the set (~1 h on 2 cores)
     python bench/stages.py --inputs ls-d3-n1024-s1 --variants network_first_off
     python bench/stages.py --cache DIR --json stages.json
     python bench/stages.py --cache DIR --cached-only   # the table, no run
