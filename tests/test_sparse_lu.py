@@ -3,10 +3,14 @@ directions, and both report a singular matrix as None."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from calippso.certification import sparse_lu
 from calippso.certification.sparse_lu import factorize, pardiso_available
 
 METHODS = ["superlu", pytest.param("pardiso", marks=pytest.mark.skipif(
@@ -48,3 +52,22 @@ def test_factors_stay_valid_after_another_factorisation(method):
 def test_unknown_method_is_refused():
     with pytest.raises(ValueError, match="unknown factorisation 'umfpack'"):
         factorize(sp.eye(3, format="csc"), "umfpack")
+
+
+@pytest.mark.skipif(not pardiso_available(), reason="pypardiso (the pardiso extra) is not installed")
+def test_pardiso_runs_in_mkl_reproducible_mode_and_repeats_bit_for_bit(monkeypatch):
+    """PARDISO on several threads varies in the last bits from run to run unless MKL's
+    conditional numerical reproducibility is on; the solver turns it on."""
+    script = (
+        "import numpy as np, scipy.sparse as sp\n"
+        "from calippso.certification import sparse_lu\n"
+        "rng = np.random.default_rng(0)\n"
+        "m = (sp.random(3000, 3000, density=2e-3, random_state=1) + 10 * sp.identity(3000))\n"
+        "x = sparse_lu.factorize(m.tocsc(), method='pardiso').solve(rng.uniform(size=3000))\n"
+        "lib = sparse_lu._pardiso_solver().libmkl\n"
+        "print(lib.MKL_CBWR_Get(-1), x.tobytes().hex()[:64], np.abs(m @ x).sum())\n")
+    monkeypatch.delenv("MKL_CBWR", raising=False)
+    runs = [subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                           check=True).stdout.split() for _ in range(2)]
+    assert int(runs[0][0]) == sparse_lu.MKL_CBWR_AUTO
+    assert runs[0] == runs[1]

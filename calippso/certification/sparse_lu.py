@@ -27,12 +27,17 @@ from scipy.sparse.linalg import splu
 
 from ..c_stdout import c_stdout_to_stderr
 
-__all__ = ["Factors", "factorize", "pardiso_available", "PARDISO_MIN_UNKNOWNS"]
+__all__ = ["Factors", "factorize", "pardiso_available", "PARDISO_MIN_UNKNOWNS", "MKL_CBWR_AUTO"]
 
 #: PARDISO is used from this many unknowns on (when installed): from a d = 3, N = 1024
 #: network (~3000 unknowns) on it factorises faster than SuperLU, by more the larger the
 #: network; on small networks both take milliseconds, and SuperLU needs no MKL.
 PARDISO_MIN_UNKNOWNS = 2500
+#: MKL's conditional numerical reproducibility mode `MKL_CBWR_AUTO` (mkl_cbwr.h). PARDISO on
+#: several threads otherwise varies in the last bits from run to run, which can change the
+#: path of network first; in this mode its results repeat bit for bit on a fixed number of
+#: threads. An `MKL_CBWR` set in the environment is left to take effect instead.
+MKL_CBWR_AUTO = 2
 
 
 class Factors(Protocol):
@@ -49,7 +54,8 @@ def pardiso_available() -> bool:
 
 @functools.lru_cache(maxsize=1)
 def _pardiso_solver():
-    """The one PARDISO solver of this process (pypardiso advises against several).
+    """The one PARDISO solver of this process (pypardiso advises against several), in MKL's
+    reproducible mode (`MKL_CBWR_AUTO`).
 
     pypardiso looks for the MKL runtime by a recursive search of the whole Python prefix,
     which takes seconds in a large environment; where pip puts it (the prefix's `lib`, or
@@ -63,7 +69,10 @@ def _pardiso_solver():
             os.environ["PYPARDISO_MKL_RT"] = str(found[0])
     import pypardiso
 
-    return pypardiso.PyPardisoSolver(mtype=11)
+    solver = pypardiso.PyPardisoSolver(mtype=11)
+    if "MKL_CBWR" not in os.environ:   # set before MKL computes anything
+        solver.libmkl.MKL_CBWR_Set(MKL_CBWR_AUTO)
+    return solver
 
 
 def factorize(matrix: sp.spmatrix, method: str = "auto", strict: bool = True) -> Factors | None:
