@@ -61,6 +61,7 @@ from scipy.optimize import brentq, minimize
 from scipy.special import hyp1f1
 from scipy.stats import chi2
 
+from .resampling import window_sums
 from .sample import PooledSample
 
 __all__ = ["FIT_METHODS", "FIT_MODELS", "LR_SIGNIFICANCE", "MIN_GROUPS_FOR_PACKING_BOOTSTRAP",
@@ -181,9 +182,12 @@ def window_mle(x: np.ndarray, a: float, b: float) -> float:
     ValueError
         The window is empty (a = b).
     """
-    x = np.asarray(x, dtype=float)
-    mean_log = float(np.mean(np.log(x)))
-    la, lb = np.log(a), np.log(b)
+    return _power_law_mle(float(np.mean(np.log(np.asarray(x, dtype=float)))), a, b)
+
+
+def _power_law_mle(mean_log: float, a: float, b: float) -> float:
+    """`window_mle` from the sufficient statistic: the mean of log x over the window."""
+    la, lb = math.log(a), math.log(b)
     span = lb - la
     if not span > 0:
         raise ValueError("the fit window is empty (its ends coincide)")
@@ -212,21 +216,22 @@ def window_mle(x: np.ndarray, a: float, b: float) -> float:
     return float(brentq(score, lo, hi, xtol=1e-12))
 
 
-_window_mle = window_mle
 
 
-def _window_mle_cutoff(x: np.ndarray, a: float, b: float,
-                       start: float) -> tuple[float, float, float]:
+def _cutoff_mle(mean_log: float, mean_x: float, a: float, b: float,
+                start: float) -> tuple[float, float, float]:
     """Maximum-likelihood (α, λ) for density ∝ x^(α−1) e^(−λ x) on [a, b].
 
-    Returns α, λ (units 1/x) and the mean log-likelihood at the maximum. The fit is done in
-    t = x / b (μ = λ b) from α = `start`, μ = 0.
+    The model is an exponential family: the likelihood depends on the values in the window
+    only through `mean_log` (mean of log x) and `mean_x` (mean of x). Returns α, λ (units
+    1/x) and the mean log-likelihood at the maximum. The fit is done in t = x / b (μ = λ b)
+    from α = `start`, μ = 0.
     """
     la, lb = math.log(a), math.log(b)
     u = 0.5 * (lb - la) * _NODES + 0.5 * (lb + la)        # quadrature nodes in log x
     log_w = np.log(0.5 * (lb - la) * _WEIGHTS)
     t_nodes = np.exp(u - lb)
-    mean_log, mean_t = float(np.mean(np.log(x))), float(np.mean(x)) / b
+    mean_t = mean_x / b
 
     cache: dict[tuple[float, float], tuple[float, np.ndarray, np.ndarray]] = {}
 
@@ -265,6 +270,22 @@ def _window_mle_cutoff(x: np.ndarray, a: float, b: float,
     return alpha, mu / b, -float(solution.fun)
 
 
+def _mle(n_points: int, mean_log: float, mean_x: float, a: float, b: float,
+         model: str) -> tuple[float, float, float, str]:
+    """Slope, cut-off λ, p-value of the pure law and model of the likelihood fit of a
+    window [a, b] holding `n_points` values with these means; "auto" is resolved here."""
+    slope, cutoff, p_value = _power_law_mle(mean_log, a, b), 0.0, float("nan")
+    if model != "power_law":
+        pure = _power_law_loglik(mean_log, slope, math.log(a), math.log(b / a))
+        alpha, lam, loglik = _cutoff_mle(mean_log, mean_x, a, b, start=slope)
+        p_value = float(chi2.sf(max(0.0, 2.0 * n_points * (loglik - pure)), df=1))
+        if model == "auto":
+            model = "cutoff" if p_value < LR_SIGNIFICANCE else "power_law"
+        if model == "cutoff":
+            slope, cutoff = alpha, lam
+    return slope, cutoff, p_value, model
+
+
 def _fit(values: np.ndarray, normalization: float, upper: float, min_count: int,
          method: str, model: str) -> PowerLawFit:
     """One fit of the sorted `values` (no interval); model "auto" is resolved here."""
@@ -284,16 +305,8 @@ def _fit(values: np.ndarray, normalization: float, upper: float, min_count: int,
         slope = float(np.polyfit(np.log(x), np.log(c), 1)[0])
         model = "power_law"
     else:
-        slope = window_mle(x, a, b)
-        if model != "power_law":
-            mean_log = float(np.mean(np.log(x)))
-            pure = _power_law_loglik(mean_log, slope, math.log(a), math.log(b / a))
-            alpha, lam, loglik = _window_mle_cutoff(x, a, b, start=slope)
-            p_value = float(chi2.sf(max(0.0, 2.0 * n_points * (loglik - pure)), df=1))
-            if model == "auto":
-                model = "cutoff" if p_value < LR_SIGNIFICANCE else "power_law"
-            if model == "cutoff":
-                slope, cutoff = alpha, lam
+        slope, cutoff, p_value, model = _mle(n_points, float(np.mean(np.log(x))),
+                                             float(np.mean(x)), a, b, model)
     amplitude = float(c[-1] / _shape(np.array([x[-1]]), slope, cutoff)[0])
     return PowerLawFit(slope=float(slope), interval=(float("nan"), float("nan")),
                        amplitude=amplitude, lower=a, upper=b, n_points=n_points, n_bootstrap=0,
@@ -356,21 +369,11 @@ def fit_cumulative_power_law(sample: PooledSample | np.ndarray, upper: float, *,
     fit = _fit(sample.values, sample.normalization, upper, min_count, method, model)
     by_packing = sample.n_groups >= MIN_GROUPS_FOR_PACKING_BOOTSTRAP
     rng = np.random.default_rng(seed)
-    slopes = np.full(n_bootstrap, np.nan)
-    if by_packing:
-        members = [sample.values[sample.groups == g] for g in range(sample.n_groups)]
-    for k in range(n_bootstrap):
-        if by_packing:
-            chosen = rng.integers(0, sample.n_groups, sample.n_groups)
-            values = np.sort(np.concatenate([members[g] for g in chosen]))
-            normalization = float(sample.group_normalizations[chosen].sum())
-        else:
-            values = np.sort(rng.choice(sample.values, size=len(sample), replace=True))
-            normalization = sample.normalization
-        try:
-            slopes[k] = _fit(values, normalization, upper, min_count, method, fit.model).slope
-        except ValueError:  # too few small values, or no convergence: left out of the interval
-            continue
+    if method == "mle":
+        slopes = _resampled_mle(sample, upper, min_count, n_bootstrap, rng, by_packing,
+                                fit.model)
+    else:
+        slopes = _resampled_lsq(sample, upper, min_count, n_bootstrap, rng, by_packing)
     tail = 50.0 * (1.0 - confidence)
     finite = slopes[np.isfinite(slopes)]
     interval = ((float(np.percentile(finite, tail)), float(np.percentile(finite, 100 - tail)))
@@ -380,3 +383,42 @@ def fit_cumulative_power_law(sample: PooledSample | np.ndarray, upper: float, *,
                        n_bootstrap=int(finite.size), confidence=float(confidence),
                        resampling="packings" if by_packing else "values", method=method,
                        model=fit.model, cutoff=fit.cutoff, p_value=fit.p_value)
+
+
+def _resampled_mle(sample: PooledSample, upper: float, min_count: int, n_bootstrap: int,
+                   rng: np.random.Generator, by_packing: bool, model: str) -> np.ndarray:
+    """The likelihood slope of every bootstrap resample, from its window sums
+    (`calippso.analysis.resampling`); nan where the window holds too few values or the
+    cut-off fit does not converge."""
+    slopes = np.full(n_bootstrap, np.nan)
+    for k, sums in enumerate(window_sums(sample, upper, min_count, n_bootstrap, rng,
+                                         by_packing)):
+        if sums.n_points < MIN_POINTS or not sums.lower < upper:
+            continue
+        try:
+            slopes[k] = _mle(sums.n_points, sums.mean_log, sums.mean_x, sums.lower, upper,
+                             model)[0]
+        except ValueError:  # no convergence: left out of the interval
+            continue
+    return slopes
+
+
+def _resampled_lsq(sample: PooledSample, upper: float, min_count: int, n_bootstrap: int,
+                   rng: np.random.Generator, by_packing: bool) -> np.ndarray:
+    """The least-squares slope of every bootstrap resample (each one sorted and refitted)."""
+    slopes = np.full(n_bootstrap, np.nan)
+    if by_packing:
+        members = [sample.values[sample.groups == g] for g in range(sample.n_groups)]
+    for k in range(n_bootstrap):
+        if by_packing:
+            chosen = rng.integers(0, sample.n_groups, sample.n_groups)
+            values = np.sort(np.concatenate([members[g] for g in chosen]))
+            normalization = float(sample.group_normalizations[chosen].sum())
+        else:
+            values = np.sort(sample.values[rng.integers(0, len(sample), len(sample))])
+            normalization = sample.normalization
+        try:
+            slopes[k] = _fit(values, normalization, upper, min_count, "lsq", "power_law").slope
+        except ValueError:  # too few small values: left out of the interval
+            continue
+    return slopes
