@@ -32,6 +32,9 @@ import numpy as np
 
 from .geometry.boundaries import Boundaries
 from .checkpoint import Checkpoint
+from .deformable import DEFORMABLE_NOTE, smallest_gap, strict_zero_modes
+from .deformable import INITIAL_STEP_FLOOR as DEFORMABLE_STEP_FLOOR
+from .deformable import median_gap as deformable_median_gap
 from .history import History, StopReason
 from .inputs import as_packing, check_enough_particles, check_input_overlaps
 from .geometry.neighbors import NeighborSearch
@@ -44,9 +47,11 @@ from .routes import jam_by_route
 from .settings import JamSettings
 from .solvers.policy import LPAttempt, SolverPolicy, next_warm_start
 from .stages.finish import CLEANUP_STEP, finish
+from .stages.strict_finish import strict_finish
 from .stages.lp_step import LPStep, lp_step
 from .stages.network_first_stage import network_first
-from .stages.newton_stage import newton_or_pivots
+from .stages.newton_stage import TRIED_BEFORE, newton_or_pivots
+from .stages.strict_newton_stage import strict_network_first
 from .stages.saved import checkpoint_signature, resumed, save_state
 from .stages.state import LoopState, Run
 from .stages.wall_kick import WALL_KICK_GROWTH, kick_off_walls
@@ -162,7 +167,7 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
             raise ValueError(f"unknown box {box_mode!r}: choose one of {', '.join(BOX_MODES)}")
     if box_mode == "deformable":
         return _jam_deformable(packing, diameters, settings, callback, checkpoint, network,
-                               on_lp, route)
+                               on_lp, route, max_displacement)
     packing = as_packing(packing, diameters, box)
     check_enough_particles(packing.n, packing.d)
     settings = settings.resolved(packing.n, packing.d)
@@ -179,28 +184,33 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
 
 
 def _jam_deformable(packing, diameters, settings: JamSettings, callback, checkpoint, network,
-                    on_lp, route: str) -> JammingResult:
-    """`jam(..., box="deformable")`: the checks, then `calippso.deformable.jam_deformable`."""
-    from .deformable import jam_deformable
-
-    unsupported = [name for name, value in (("checkpoint", checkpoint), ("network", network),
-                                            ("on_lp", on_lp)) if value is not None]
-    if route != "lp":
-        unsupported.append(f"route={route!r}")
-    if unsupported:
-        raise ValueError(f"box='deformable' runs the LP loop alone; it does not take "
-                         f"{', '.join(unsupported)}")
+                    on_lp, route: str, max_displacement: float | None) -> JammingResult:
+    """`jam(..., box="deformable")`: the checks, then the loop with the box's strain in
+    every LP (`calippso.deformable`), from `packing` as given (the LP route)."""
+    if route != "lp" or max_displacement is not None:
+        raise ValueError("box='deformable' takes the LP route from the input as given: pass "
+                         "no route or max_displacement")
     if not isinstance(packing, Packing):
-        if diameters is None:
-            raise TypeError("jam(positions, diameters, box=...) needs the box sides: pass a "
-                            "Packing with box='deformable'")
+        raise TypeError("jam(positions, diameters, box=...) needs the box sides: pass a "
+                        "Packing with box='deformable'")
+    if not packing.boundaries.is_periodic:
+        raise ValueError("box='deformable' needs a periodic box; walls and cylinders stay "
+                         "where they are (use the fixed box)")
     check_enough_particles(packing.n, packing.d)
-    return jam_deformable(packing, settings, callback)
+    if settings.crossover == "auto":    # the strain columns are read from a vertex
+        settings = settings.with_changes(crossover="on")
+    start = time.perf_counter()
+    hint = None if network is None else check_network_hint(network, packing.n)
+    run, state, saver, hint = _start(packing, settings, callback, checkpoint, start, hint,
+                                     on_lp, deformable=True)
+    return replace(_run(run, state, saver, hint), phi_input=packing.phi)
 
 
-def initial_step_bound(gap: float, settings: JamSettings) -> float:
+def initial_step_bound(gap: float, settings: JamSettings,
+                       floor: float = INITIAL_STEP_FLOOR) -> float:
     """First bound on displacements: the median nearest-neighbour surface gap, at least
-    `INITIAL_STEP_FLOOR`, clipped to [min_step, max_step].
+    `floor` (`INITIAL_STEP_FLOOR`; a deformable box's is
+    `calippso.deformable.INITIAL_STEP_FLOOR`), clipped to [min_step, max_step].
 
     From a compressed state the particles still travel much farther than their gaps to the
     jamming point; starting at the gap would spend several LPs growing the bound.
@@ -212,8 +222,7 @@ def initial_step_bound(gap: float, settings: JamSettings) -> float:
     settings : JamSettings
         `initial_step` overrides the rule; the result lies in [min_step, max_step].
     """
-    step = settings.initial_step if settings.initial_step is not None else max(
-        gap, INITIAL_STEP_FLOOR)
+    step = settings.initial_step if settings.initial_step is not None else max(gap, floor)
     return float(np.clip(step, settings.min_step, settings.max_step))
 
 
@@ -261,14 +270,24 @@ def _run(run: Run, state: LoopState, checkpoint: Checkpoint | None,
     settings, history = run.settings, run.history
     deadline = None if settings.time_limit is None else time.perf_counter() + settings.time_limit
     if settings.network_first != "off" and not history.records:
-        state, certified = network_first(run, state, hint)
+        if state.cell is not None:
+            state, strict = strict_network_first(run, state, hint, TRIED_BEFORE)
+            if strict is not None:
+                return strict_finish(run, state, strict, StopReason.NETWORK_FIRST, None)
+            if settings.network_first == "require":
+                raise run.fail(state, "network_first='require': the network hint was not "
+                                      "certified (" + (history.notes[-1] if hint is not None
+                                                       else "no hint given") + ")")
+            certified = None
+        else:
+            state, certified = network_first(run, state, hint)
         if certified is not None:
             return finish(run, state, certified.network, certified.reason)
         if settings.network_first == "require":
             raise run.fail(state, "network_first='require': no network guessed from the "
                                   "input was certified (" + history.notes[-1] + ")")
     network: ContactNetwork | None = None
-    reason, verifying = StopReason.MAX_ITERS, False
+    reason, verifying, lp = StopReason.MAX_ITERS, False, None
     while history.lps_solved < settings.max_iters:
         state, lp = lp_step(run, state)
         network, converged = lp.network, lp.converged(settings)
@@ -312,6 +331,8 @@ def _run(run: Run, state: LoopState, checkpoint: Checkpoint | None,
             break
     if network is None:
         raise run.fail(state, f"no LP was solved (max_iters = {settings.max_iters})")
+    if state.cell is not None:
+        return strict_finish(run, state, network, reason, None if lp is None else lp.taken)
     return finish(run, state, network, reason)
 
 
@@ -322,11 +343,19 @@ def _out_of_time(deadline: float | None) -> bool:
 
 def _adapted(state: LoopState, lp: LPStep, settings: JamSettings) -> LoopState:
     """The next LP's bound (`next_step_bound`, from the bound the accepted LP had: a retry
-    may have used a smaller one) and warm start."""
+    may have used a smaller one) and warm start (`next_warm_start`). A deformable box
+    starts cold only after a step that reached its bound (the bound then grows and the next
+    optimum is far): the fixed box's rule, cold after any move of half the bound, would
+    solve one LP in eight cold along the slide of a deformable box, at ten times the cost
+    of a warm start from the last basis."""
     taken = lp.taken
-    return replace(state, step=next_step_bound(taken.lp.step_bound, taken, settings),
-                   basis=next_warm_start(taken.solution, taken.offered_warm_start,
-                                         taken.max_displacement, taken.lp.step_bound))
+    bound = taken.lp.step_bound
+    moved = taken.max_displacement
+    if state.cell is not None and not at_bound(moved, bound):
+        moved = 0.0
+    return replace(state, step=next_step_bound(bound, taken, settings),
+                   basis=next_warm_start(taken.solution, taken.offered_warm_start, moved,
+                                         bound))
 
 
 def check_box_size(run: Run, state: LoopState, taken: Step) -> None:
@@ -337,6 +366,8 @@ def check_box_size(run: Run, state: LoopState, taken: Step) -> None:
     high d) can leave every particle a rattler until the diameters approach that limit;
     the loop would then creep towards it with ever smaller steps.
     """
+    if state.cell is not None:   # the strained LP step checks its own cell
+        return
     half = state.search.half_period
     largest = float(state.diameters.max())
     if taken.stable_fraction == 0 and largest >= (1.0 - SMALL_BOX_MARGIN) * half:
@@ -351,10 +382,12 @@ def check_box_size(run: Run, state: LoopState, taken: Step) -> None:
 def _start(packing: Packing, settings: JamSettings,
            callback: Callable[[dict], bool | None] | None,
            checkpoint: str | os.PathLike | None, start: float, hint: np.ndarray | None,
-           on_lp: Callable[[LPAttempt], None] | None
+           on_lp: Callable[[LPAttempt], None] | None, deformable: bool = False
            ) -> tuple[Run, LoopState, Checkpoint | None, np.ndarray | None]:
     """The run and the loop's first state (internal units: mean input diameter = 1),
-    resumed from `checkpoint` if it holds a saved state.
+    resumed from `checkpoint` if it holds a saved state; with the box's strain in every LP
+    when `deformable` (`calippso.deformable`: the state holds the box vectors, the history
+    counts strictly isostatic networks).
 
     Returns
     -------
@@ -363,27 +396,40 @@ def _start(packing: Packing, settings: JamSettings,
     """
     boundaries = packing.boundaries
     history = History(packing.d, start, verbose=settings.verbose,
-                      zero_modes=boundaries.zero_modes)
-    if not boundaries.is_periodic:
+                      zero_modes=strict_zero_modes(packing.d) if deformable
+                      else boundaries.zero_modes)
+    if deformable:
+        history.note(DEFORMABLE_NOTE)
+    elif not boundaries.is_periodic:
         settings, hint = _in_a_container(settings, hint, boundaries, history)
     policy = SolverPolicy(settings, on_lp)
     scale = packing.mean_diameter
     box = packing.box / scale
     periodic = None if boundaries.is_periodic else boundaries.periodic
-    positions = wrap(packing.positions / scale, box, periodic)
     diameters = packing.diameters / scale
+    if deformable:
+        positions, cell = packing.positions / scale, packing.lattice / scale
+        deepest = smallest_gap(positions, diameters, cell)
+        if deepest < -settings.overlap_tolerance:
+            raise ValueError(f"the input overlaps: the deepest relative gap is {deepest:.3e}, "
+                             f"beyond overlap_tolerance {settings.overlap_tolerance:g}")
+        search, gap = None, deformable_median_gap(positions, diameters, cell)
+        step = initial_step_bound(gap, settings, DEFORMABLE_STEP_FLOOR)
+    else:
+        positions, cell = wrap(packing.positions / scale, box, periodic), None
+        search = NeighborSearch(positions, diameters, box, periodic)
+        check_input_overlaps(search, settings.overlap_tolerance)
+        gap = median_gap(search)
+        step = initial_step_bound(gap, settings)
     # the pin removes the container's zero modes: the translations along the periodic
     # axes (a wall holds the rest), and a cylinder's rotation
     fixed = np.zeros((packing.n, packing.d), dtype=bool)
     if settings.pin:
         fixed = pinned_coordinates(positions, box, np.ones(packing.n, bool), boundaries)
-    search = NeighborSearch(positions, diameters, box, periodic)
-    check_input_overlaps(search, settings.overlap_tolerance)
-    gap = median_gap(search)
     run = Run(settings, boundaries, box, scale, fixed, gap, history, policy, callback)
-    state = LoopState(positions, diameters, search, initial_step_bound(gap, settings))
+    state = LoopState(positions, diameters, search, step, cell=cell)
     saver = None if checkpoint is None else Checkpoint(
-        checkpoint, "jam", checkpoint_signature(packing, settings), every=0.0)
+        checkpoint, "jam", checkpoint_signature(packing, settings, deformable), every=0.0)
     if saver is not None:
         state = resumed(run, state, saver.load())
     return run, state, saver, hint

@@ -117,7 +117,7 @@ import lattices  # noqa: E402
 from configurations import ls_packing  # noqa: E402
 
 from calippso import StopReason, jam, jamming_category  # noqa: E402
-from calippso.deformable import _floppy_strict_rows, strict_zero_modes  # noqa: E402
+from calippso.deformable import floppy_strict_rows, strict_zero_modes  # noqa: E402
 
 #: Round-off tolerances of the checks (relative to the diameters, and to the mean force).
 OVERLAP_TOLERANCE = 1e-12
@@ -177,7 +177,7 @@ def test_lp_rows_are_the_linearised_distances_with_the_strain_on_boundary_pairs_
     """Each row of the deformable LP is n·Δr − γσ²/(2|r|) for the pair's exact change Δr =
     s'_i − s'_j + ε m (s' the displacements with their affine part, m the pair's lattice
     vector): the strain enters the rows of the pairs across the boundary, and no other."""
-    from calippso.deformable import _build_lp, _images, strain_count, strain_matrix
+    from calippso.deformable import _images, strain_count, strain_matrix, strained_lp
     from calippso.geometry.sheared_search import sheared_pairs_within
 
     rng = np.random.default_rng(d)
@@ -190,7 +190,9 @@ def test_lp_rows_are_the_linearised_distances_with_the_strain_on_boundary_pairs_
     pairs = sheared_pairs_within(positions, diameters, matrix, 2.0)
     images = _images(positions, matrix, pairs)
     k = strain_count(d)
-    lp = _build_lp(pairs, images, n, d, 0.05, 0.01, pinned=0)
+    pinned = np.zeros((n, d), dtype=bool)
+    pinned[0] = True
+    lp = strained_lp(pairs, images, n, d, 0.05, 0.01, pinned)
     moves, strain, gamma = rng.normal(size=(n, d)), rng.normal(size=k), 0.3
     variables = np.concatenate([moves.ravel(), strain, [gamma]])
     change = (moves[pairs.i] - moves[pairs.j]) + images @ strain_matrix(strain, d).T
@@ -238,7 +240,7 @@ def test_a_random_packing_ends_strictly_jammed(d, n):
                                               seed=0).packing
     fixed = jam(start)
     assert jamming_category(fixed).category == "collective"   # isostatic: never strict
-    assert _floppy_strict_rows(fixed.packing, *fixed.contacts.T, fixed.rattlers)
+    assert floppy_strict_rows(fixed.packing, *fixed.contacts.T, fixed.rattlers)
     result = jam(start, box="deformable")
     assert_strictly_jammed(result)
     assert result.isostatic and result.isostaticity_gap == 0
@@ -261,8 +263,8 @@ def test_a_deformable_result_round_trips_and_jams_again_unchanged(tmp_path):
 
 def test_deformable_box_refuses_what_it_does_not_run(tmp_path):
     packing = lattices.triangular(4)
-    with pytest.raises(ValueError, match="checkpoint"):
-        jam(packing, box="deformable", checkpoint=tmp_path / "c.npz")
+    with pytest.raises(ValueError, match="LP route"):
+        jam(packing, box="deformable", route="relaxed")
     with pytest.raises(ValueError, match="unknown box 'elastic'"):
         jam(packing, box="elastic")
     from calippso import Boundaries
@@ -341,7 +343,7 @@ def test_a_strict_network_read_from_an_lp_is_solved_by_newton_and_certified(bina
 
 
 def test_rattlers_overlapped_by_the_newton_move_are_moved_out_and_others_refused():
-    from calippso.deformable import _clear_rattlers
+    from calippso.certification.strict_newton import clear_rattlers
     from calippso.geometry.sheared_search import sheared_pairs_within
 
     packing = lattices.triangular(4)
@@ -355,7 +357,8 @@ def test_rattlers_overlapped_by_the_newton_move_are_moved_out_and_others_refused
     pushed = positions.copy()
     pushed[0] += 3e-11 * touching.vectors[touching.i == 0][0] if np.any(touching.i == 0) \
         else -3e-11 * touching.vectors[touching.j == 0][0]
-    cleared, stable_overlap = _clear_rattlers(pushed, diameters, matrix, keys, rattlers)
+    cleared, stable_overlap = clear_rattlers(pushed, diameters, matrix, keys, rattlers,
+                                             1e-12)
     assert cleared is not None and not stable_overlap
     gaps = sheared_pairs_within(cleared, diameters, matrix, 1.0 + 1e-6).gaps
     assert gaps.min() >= -1e-12
@@ -363,4 +366,5 @@ def test_rattlers_overlapped_by_the_newton_move_are_moved_out_and_others_refused
     assert np.abs(moved).max() < 1e-9 and np.abs(moved[1:]).max() < 1e-15
     squeezed = positions.copy()
     squeezed[1] += 3e-11 * (positions[2] - positions[1])    # two stable discs, no contact
-    assert _clear_rattlers(squeezed, diameters, matrix, keys[:0], rattlers) == (None, True)
+    assert clear_rattlers(squeezed, diameters, matrix, keys[:0], rattlers,
+                          1e-12) == (None, True)

@@ -20,7 +20,7 @@ Its rows on u say that the forces balance on every stable particle, its rows on 
 that their stress is isotropic, and y > 0 on every contact makes them dual feasible: with
 no other pair overlapping, the deformable LP there has the optimum u = 0, ε = 0, Γ = 1. A
 non-singular Jacobian leaves no floppy mode of the strict rows, so the packing is strictly
-jammed.
+jammed. `clear_rattlers` moves the rattlers that the strict point's small move overlaps.
 """
 
 from __future__ import annotations
@@ -34,9 +34,18 @@ from .newton import (CHORD_CONTRACTION, MAX_CORRECTION, MAX_ITERATIONS, MIN_FORC
                      RESIDUAL_TOLERANCE, ROUNDOFF_RESIDUAL, STEP_TOLERANCE,
                      contact_equations_jacobian, free_columns, self_stress)
 from ..geometry.periodic import lattice_wrap
+from ..geometry.sheared_search import sheared_pairs_within
 from .sparse_lu import factorize
 
-__all__ = ["StrictRefinement", "refine_strict", "strict_unknowns"]
+__all__ = ["StrictRefinement", "refine_strict", "strict_unknowns", "clear_rattlers",
+           "NEAR_CONTACT"]
+
+#: Passes that move rattlers out of overlaps after the strict Newton stage, and the gap
+#: (relative to the pair's contact distance) that each pass leaves.
+RATTLER_PASSES = 16
+RATTLER_CLEARANCE = 1e-12
+#: The search for pairs that touch reaches this fraction beyond the largest diameter.
+NEAR_CONTACT = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -229,3 +238,59 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
         sqrt_gamma_minus_1=float(np.sqrt(gamma) - 1.0), max_displacement=travel,
         residual=worst)
 
+
+
+def clear_rattlers(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
+                   keys: np.ndarray, rattlers: np.ndarray, round_off: float
+                   ) -> tuple[np.ndarray | None, bool]:
+    """The positions with every rattler that a pair overlaps beyond `round_off` moved out
+    of it along the pair's normal (a rattler that touched its cage after the last LP is
+    overlapped by the cage's small move to the strict point).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (N, d)
+        Centres at the strict point, in the cell of `matrix`.
+    diameters : ndarray, shape (N,)
+    matrix : ndarray, shape (d, d)
+        Box vectors as columns.
+    keys : ndarray, shape (M,), int
+        The contacts' keys min(i, j) N + max(i, j).
+    rattlers : ndarray, shape (N,), bool
+    round_off : float
+        Relative overlap tolerated (the LPs' feasibility round-off).
+
+    Returns
+    -------
+    (ndarray or None, bool)
+        The moved positions; None when a rattler is still overlapped after
+        `RATTLER_PASSES` passes, or when two stable particles that are no contact overlap
+        beyond `round_off` (then the flag is True).
+    """
+    n = positions.shape[0]
+    cutoff = float(diameters.max()) * (1.0 + NEAR_CONTACT)
+    for _ in range(RATTLER_PASSES + 1):
+        close = sheared_pairs_within(positions, diameters, matrix, cutoff)
+        outside = ~np.isin(np.minimum(close.i, close.j) * n + np.maximum(close.i, close.j),
+                           keys)
+        caged = rattlers[close.i] | rattlers[close.j]
+        if np.any(outside & ~caged & (close.gaps < -round_off)):
+            return None, True
+        overlapping = outside & caged & (close.gaps < -round_off)
+        if not overlapping.any():
+            return positions, False
+        i, j = close.i[overlapping], close.j[overlapping]
+        # each overlap pushes its rattler(s) out to a gap of RATTLER_CLEARANCE (halves for
+        # two); a rattler moves by the mean of its pushes (their sum overshoots in a cage
+        # that it fits tightly)
+        depth = (close.sigma * (1.0 + RATTLER_CLEARANCE) - close.distances)[overlapping]
+        normals = close.vectors[overlapping] / close.distances[overlapping, None]
+        share = 1.0 / (rattlers[i].astype(float) + rattlers[j].astype(float))
+        move = np.zeros_like(positions)
+        pushes = np.zeros(positions.shape[0])
+        for ends, sign in ((i, 1.0), (j, -1.0)):
+            mask = rattlers[ends]
+            np.add.at(move, ends[mask], sign * (share * depth)[mask, None] * normals[mask])
+            np.add.at(pushes, ends[mask], 1.0)
+        positions = lattice_wrap(positions + move / np.maximum(pushes, 1.0)[:, None], matrix)
+    return None, False

@@ -19,6 +19,7 @@ from ..geometry.contact_network import ContactNetwork
 from ..certification.newton import MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, refine_isostatic
 from ..certification.pivots import PivotPath, describe_path, pivot_to_jamming
 from .state import LoopState, Run
+from .strict_newton_stage import strict_newton
 
 __all__ = ["NewtonOutcome", "newton", "newton_or_pivots", "record_pivots", "TRIED_BEFORE",
            "INTERIOR_PIVOTS"]
@@ -110,7 +111,11 @@ def newton_or_pivots(run: Run, state: LoopState,
                      network: ContactNetwork) -> tuple[LoopState, NewtonOutcome]:
     """The Newton stage for an LP's isostatic network; with ``crossover="off"`` (unless
     ``pivots="off"``), contact pivots from its jamming point when only non-positive forces
-    refuse it."""
+    refuse it. In a deformable box, the strictly jammed point of the network
+    (`calippso.stages.strict_newton_stage`)."""
+    if state.cell is not None:
+        state, certified, failure = strict_newton(run, state, network, TRIED_BEFORE)
+        return state, NewtonOutcome(certified, failure)
     settings = run.settings
     pivots = settings.crossover == "off" and settings.pivots != "off"
     if not pivots or network.key() in state.failed_networks:

@@ -37,8 +37,9 @@ class LoopState:
     positions : ndarray, shape (N, d)
         Centres, wrapped into the box along its periodic axes.
     diameters : ndarray, shape (N,)
-    search : NeighborSearch
-        The neighbour search of `positions` and `diameters`.
+    search : NeighborSearch or None
+        The neighbour search of `positions` and `diameters` (None in a deformable box, whose
+        pairs come from `calippso.geometry.sheared_search`).
     step : float
         Bound on each displacement component in the next LP (mean diameters).
     forced : ndarray, shape (M, 2), int
@@ -52,17 +53,21 @@ class LoopState:
     wall_kicks : int
         Times a hypostatic network between walls was moved out of its layers
         (`calippso.stages.wall_kick`).
+    cell : ndarray, shape (d, d), or None
+        The box vectors as columns in a deformable box (`calippso.deformable`), which the
+        LPs strain; None when the box is the run's fixed one.
     """
 
     positions: np.ndarray
     diameters: np.ndarray
-    search: NeighborSearch
+    search: NeighborSearch | None
     step: float
     forced: np.ndarray = field(default_factory=NO_PAIRS.copy)
     forced_walls: np.ndarray = field(default_factory=NO_PAIRS.copy)
     basis: Basis | None = None
     failed_networks: frozenset[str] = frozenset()
     wall_kicks: int = 0
+    cell: np.ndarray | None = None
 
     def refused(self, key: str) -> LoopState:
         """This state with the network `key` among the refused ones."""
@@ -137,7 +142,11 @@ class Run:
         return replace(state, positions=positions, diameters=diameters, search=search)
 
     def packing(self, state: LoopState) -> Packing:
-        """The configuration of `state` in the caller's units."""
+        """The configuration of `state` in the caller's units (in its sheared box, when the
+        box is deformable)."""
+        if state.cell is not None:
+            return Packing.sheared(state.positions * self.scale, state.diameters * self.scale,
+                                   state.cell * self.scale)
         return self.packing_of(state.positions, state.diameters)
 
     def packing_of(self, positions: np.ndarray, diameters: np.ndarray) -> Packing:
