@@ -61,6 +61,31 @@ class PooledSample:
                    np.concatenate(groups) if groups else np.zeros(0, dtype=np.int64),
                    np.array([float(norm) for _, norm in parts]))
 
+    def select(self, packings) -> "PooledSample":
+        """The values of some packings only, pooled in the order given (renumbered 0, 1, …).
+
+        Parameters
+        ----------
+        packings : array_like of int, shape (P,)
+            Group indices to keep (distinct).
+        """
+        keep = np.asarray(packings, dtype=np.int64).ravel()
+        if np.unique(keep).size != keep.size or np.any((keep < 0) | (keep >= self.n_groups)):
+            raise ValueError(f"packings must be distinct indices below {self.n_groups}")
+        new_index = np.full(self.n_groups, -1, dtype=np.int64)
+        new_index[keep] = np.arange(keep.size)
+        mine = new_index[self.groups] >= 0
+        return PooledSample(self.values[mine], new_index[self.groups[mine]],
+                            self.group_normalizations[keep])
+
+    def minima(self) -> np.ndarray:
+        """The smallest value of each packing, shape (n_groups,) (nan for a packing without
+        values)."""
+        smallest = np.full(self.n_groups, np.nan)
+        first = np.unique(self.groups, return_index=True)
+        smallest[first[0]] = self.values[first[1]]
+        return smallest
+
     def __len__(self) -> int:
         return int(self.values.size)
 
