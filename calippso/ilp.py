@@ -19,6 +19,11 @@
 Every stage takes the run (`calippso.stages.state.Run`) and the loop's state (a frozen
 `LoopState`), returns the new state and what it found, and adds its records and notes to
 the run's `calippso.history.History`; `StopReason` says why the loop stopped.
+
+A deformable box (``box="deformable"``, `calippso.deformable`) runs the same loop: the
+state holds the box vectors (`LoopState.cell`), the LP step adds the strain columns, the
+Newton stage is the strict one (`calippso.stages.strict_newton_stage`, which also tries the
+network hint before the first LP) and the finish `calippso.stages.strict_finish`.
 """
 
 from __future__ import annotations
@@ -86,8 +91,9 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         Box side lengths, when `packing` is an array of positions. Or, as a string, what the
         box does: "fixed" (default) keeps it as given; "deformable" puts the box's strain
         in every LP (volume not growing), towards a strictly jammed packing
-        (`calippso.deformable`: LPs and a strict Newton stage, periodic boxes, rectangular
-        or sheared input; the result holds the final box matrix and the stress tensor).
+        (`calippso.deformable`: this loop with the strain columns and a strict Newton
+        stage; periodic boxes, rectangular or sheared input, the LP route; the result holds
+        the final box matrix and the stress tensor).
     solver : {"highs", "clarabel", "cvxpy"} or str
         LP backend. "highs" (interior point + crossover) gives vertex solutions whose duals
         identify contacts exactly; the others are interior-point solvers at tight tolerances.
@@ -114,7 +120,8 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         A contact network the caller knows (e.g. `GenerationResult.contacts` of a
         soft-sphere quench): pairs of particle indices. It is tried first by the
         network-first stage (``network_first``) and used only if the Newton certificate
-        proves its jamming point.
+        proves its jamming point (in a deformable box, by the strict Newton stage when it
+        has the strict count).
     on_lp : callable, optional
         Called after every backend call of the run (each LP, its retries and fallbacks, the
         cold re-solves and the force clean-up LP) with a `calippso.solvers.LPAttempt`: the LP
