@@ -12,6 +12,7 @@ when the finite-size scaling holds: the power law at large x, the cut-off at x ~
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,12 +110,21 @@ def gap_cutoff(gaps_by_size: dict[int, PooledSample], confidence: float = 0.95) 
     means, sigmas = np.array(means), np.array(sigmas)
     interval = np.exp(np.c_[means - z * sigmas, means + z * sigmas])
     slope, slope_interval = _log_slope(np.log(sizes), means, sigmas, z)
-    gamma_ends = sorted(1.0 + 1.0 / s for s in slope_interval)
+    gamma_ends = _gamma_of_slopes(*slope_interval)
     return GapCutoff(sizes=sizes, h_min=np.exp(means), interval=interval,
                      packings=np.array(counts), slope=slope,
                      slope_interval=slope_interval, gamma=1.0 + 1.0 / slope,
                      gamma_interval=(gamma_ends[0], gamma_ends[1]),
                      confidence=float(confidence))
+
+
+def _gamma_of_slopes(low: float, high: float) -> tuple[float, float]:
+    """The γ = 1 + 1/slope of the slopes in [low, high]: (1 + 1/high, 1 + 1/low) for
+    negative slopes, unbounded below when the interval reaches 0 (a flat h_min(N) means no
+    scaling), nan when no slope is negative."""
+    if not low < 0:
+        return float("nan"), float("nan")
+    return (1.0 + 1.0 / high if high < 0 else -math.inf), 1.0 + 1.0 / low
 
 
 def _log_slope(x: np.ndarray, y: np.ndarray, sigma: np.ndarray,

@@ -43,11 +43,30 @@ from .common import Container, container_options, naming, output_options, with_c
     "force, or the contacts whose opening moves one particle (isostatic packings only; "
     "docs/analysis.md).",
 )
+@click.option(
+    "--correction",
+    type=click.Choice(["auto", "constant", "inverse_n", "power"]),
+    default="auto",
+    show_default=True,
+    help="Packings of several sizes: the finite-size correction of the extrapolation to "
+    "N -> infinity (auto: x_inf + a N^-omega with omega fitted from four sizes on, 1/N with "
+    "fewer; docs/analysis.md).",
+)
+@click.option(
+    "--omega",
+    type=click.FloatRange(min=0, min_open=True),
+    default=None,
+    help="Fix omega of the correction x_inf + a N^-omega.",
+)
 @container_options
 @output_options
-def report(results, output, model, rule, container, out):
+def report(results, output, model, rule, correction, omega, container, out):
     """Analyse jammed results (.npz/.h5 files, or folders of them such as an ensemble's) and
     write one pooled report to a folder.
+
+    Packings of several sizes are also grouped by N: each exponent per size and extrapolated
+    to N -> infinity (exponents_vs_n.png, gaps_collapse.png, "by_size" and "extrapolated"
+    in summary.json).
 
     A packing with walls adds the wall forces (apart from the particle forces), the loads and
     pressures on the walls and the layering profile; --walls/--cylinder set the boundaries of
@@ -55,7 +74,8 @@ def report(results, output, model, rule, container, out):
     """
     files, loaded, skipped = read_results(results)
     loaded = [_with_container(result, container, path) for result, path in zip(loaded, files)]
-    page = make_report(loaded, output, model=model, rule=rule)
+    page = make_report(loaded, output, model=model, rule=rule, correction=correction,
+                       omega=omega)
     warnings = json.loads((page.parent / "summary.json").read_text()).get("warnings", [])
     record = {"command": "report", "results": [str(p) for p in files],
               "skipped": [str(p) for p in skipped], "report": str(page), "warnings": warnings}

@@ -14,7 +14,8 @@ from ..analysis.sample import PooledSample
 from ..result import JammingResult
 from ._matplotlib import pyplot
 
-__all__ = ["plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history", "plot_walls"]
+__all__ = ["plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history", "plot_walls",
+           "save_figure", "thinned"]
 
 _DPI = 120
 #: Smallest value drawn on a log axis (an exact zero is drawn there).
@@ -27,9 +28,13 @@ _ISOSTATIC_WIDTH = 7.0
 _LABEL_OFFSET = 0.12
 #: Wall-force histogram: number of bins over [0, the largest force].
 _WALL_FORCE_BINS = 20
+#: Most points drawn of one cumulative: beyond it the points are taken at log-spaced ranks
+#: (a line through millions of values looks the same and takes seconds to draw).
+MAX_DRAWN_POINTS = 4000
 
 
-def _save(fig, path: Path) -> Path:
+def save_figure(fig, path: Path) -> Path:
+    """Lay out `fig`, write it to `path` as PNG, close it; returns `path`."""
     fig.tight_layout()
     fig.savefig(path, dpi=_DPI)
     pyplot().close(fig)
@@ -51,8 +56,17 @@ def _fit_and_reference(ax, exponent: Exponent, slope_of_reference: float, color:
             label=f"reference {label} = {REFERENCE_EXPONENTS[exponent.name]:g}")
 
 
+def thinned(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """At most `MAX_DRAWN_POINTS` of the points (x_k, y_k), at log-spaced ranks k (the first
+    and the last kept), for drawing a cumulative on log axes."""
+    if x.size <= MAX_DRAWN_POINTS:
+        return x, y
+    ranks = np.unique(np.geomspace(1, x.size, MAX_DRAWN_POINTS).astype(np.int64) - 1)
+    return x[ranks], y[ranks]
+
+
 def _cumulative(ax, sample: PooledSample, **style) -> None:
-    x, c = sample.cumulative()
+    x, c = thinned(*sample.cumulative())
     keep = x > 0
     if keep.any():
         ax.loglog(x[keep], c[keep], **style)
@@ -76,7 +90,7 @@ def plot_forces(analysis: Analysis, path: Path) -> Path:
     ax.set_ylabel("G(f)  (cumulative distribution)")
     ax.set_title(_title(analysis, "forces"))
     ax.legend(fontsize=7, loc="lower right")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_gaps(analysis: Analysis, path: Path) -> Path:
@@ -100,7 +114,7 @@ def plot_gaps(analysis: Analysis, path: Path) -> Path:
     right.set_ylabel("g(h)")
     right.legend(fontsize=7)
     fig.suptitle(_title(analysis, "gaps"), fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_contact_numbers(analysis: Analysis, path: Path) -> Path:
@@ -127,7 +141,7 @@ def plot_contact_numbers(analysis: Analysis, path: Path) -> Path:
     ax.set_xlabel("contacts per stable particle (red: bucklers, d + 1)")
     ax.set_ylabel("fraction of stable particles")
     ax.set_title(_title(analysis, "contact numbers"))
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _side_label(ax, x: float, text: str, left: bool, color: str) -> None:
@@ -163,7 +177,7 @@ def plot_history(result: JammingResult, path: Path, title: str = "") -> Path:
     bottom.set_xlabel("wall time (s, cumulative)")
     top.set_title(title or f"N = {result.packing.n}, d = {result.d}, {result.solver}: "
                   f"{result.iterations} LPs, {result.wall_time:.1f} s", fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_walls(analysis: Analysis, path: Path) -> Path:
@@ -202,7 +216,7 @@ def plot_walls(analysis: Analysis, path: Path) -> Path:
     right.set_xlim(0.0, float(profile.distance[-1]))
     right.legend(fontsize=8)
     fig.suptitle(_title(analysis, "walls"), fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _title(analysis: Analysis, what: str) -> str:

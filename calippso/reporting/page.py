@@ -93,6 +93,8 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
                 lines.append(f"* {symbol}: " + ", ".join(
                     f"{row['upper']:.2g}: {row['power_law']:.3f} / {row['cutoff']:.3f} "
                     f"({row['points']}, p = {row['p_value']:.2g})" for row in rows))
+    if "by_size" in summary:
+        lines += _sizes_section(summary, figures)
     lines += _stress_section(summary)
     if "walls" in summary:
         lines += _walls_section(summary["walls"], figures["walls"])
@@ -106,6 +108,52 @@ def markdown(summary: dict, figures: dict[str, Path], histories: list[Path],
                   enumerate(histories)]
         lines.append("")
     return "\n".join(lines)
+
+
+def _interval(entry: dict | None) -> str:
+    """"value [low, high]" of a {"value", "interval"} entry, "—" for None."""
+    if entry is None:
+        return "—"
+    low, high = entry["interval"]
+    return f"{_fmt(entry['value'], 3)} [{_fmt(low, 3)}, {_fmt(high, 3)}]"
+
+
+def _sizes_section(summary: dict, figures: dict[str, Path]) -> list[str]:
+    """The "Sizes" section: each exponent per N and extrapolated, the form of the
+    extrapolation, the gap cut-off and the two figures."""
+    lines = ["", "## Sizes", "",
+             "The exponents of the packings of each size N (same windows and models as "
+             "above), and their limit N → ∞ (`calippso.analysis.finite_size_analysis`).", "",
+             "| N | packings | " + " | ".join(symbol for symbol, _ in _NAMES.values()) + " |",
+             "|---|---|" + "---|" * len(_NAMES)]
+    for n, row in summary["by_size"].items():
+        lines.append(f"| {n} | {row['packings']} | "
+                     + " | ".join(_interval(row.get(name)) for name in _NAMES) + " |")
+    extrapolated = summary["extrapolated"]
+    lines.append("| N → ∞ | | " + " | ".join(_interval(extrapolated.get(name))
+                                              for name in _NAMES) + " |")
+    lines.append("| literature | | " + " | ".join(
+        f"{summary['reference_exponents'][name]:g}" for name in _NAMES) + " |")
+    lines += ["", "Extrapolation: "]
+    for name, (symbol, _) in _NAMES.items():
+        e = extrapolated.get(name)
+        if e is None:
+            reason = summary["extrapolation_errors"].get(name, "not extrapolated")
+            lines.append(f"* {symbol}: not extrapolated: {reason}")
+            continue
+        omega = "" if e["omega"] is None else f", ω = {e['omega']:.3g}"
+        p_value = "" if e["p_value"] is None else f", χ² p = {e['p_value']:.2g}"
+        lines.append(f"* {symbol}: form {e['form']}{omega}{p_value} ({e['reason']})")
+    cutoff = summary["gap_cutoff"]
+    lines += ["", "Gap cut-off: the geometric mean of each packing's smallest gap, h_min(N) = "
+              + ", ".join(f"{h:.3g} (N = {n})" for n, h in zip(cutoff["sizes"],
+                                                                cutoff["h_min"]))
+              + f"; h_min ~ N^{_fmt(cutoff['slope'], 3)}, so γ = {_fmt(cutoff['gamma'], 3)} "
+              f"[{_fmt(cutoff['gamma_interval'][0], 3)}, {_fmt(cutoff['gamma_interval'][1], 3)}]"
+              " (h_min ~ N^(−1/(1−γ))).", "",
+              f"![exponents against N]({figures['exponents_vs_n'].name})", "",
+              f"![gap distributions across sizes]({figures['gaps_collapse'].name})"]
+    return lines
 
 
 def _stress_section(summary: dict) -> list[str]:
