@@ -76,20 +76,20 @@ def _by_value(sample: PooledSample, upper: float, min_count: int, n_resamples: i
               rng: np.random.Generator) -> list[WindowSums]:
     values = sample.values
     k = values.size
-    inside = (values > 0) & (values <= upper)
-    logs = np.log(values[inside])
-    x_in = values[inside]
+    reach = int(np.searchsorted(values, upper, side="right"))   # values ≤ upper: [0, reach)
+    low = values[:reach]
+    positive = low > 0
+    logs = np.log(np.where(positive, low, 1.0))
     rows = []
     for _ in range(n_resamples):
-        copies = np.bincount(rng.integers(0, k, k), minlength=k)
+        drawn = rng.integers(0, k, k)
+        copies = np.bincount(drawn[drawn < reach], minlength=reach)
         ranked = np.cumsum(copies)                 # rank of the last copy of each value
         # copies with rank ≥ min_count: the first min_count − 1 draws lie below the window
-        kept = np.clip(ranked - (min_count - 1), 0, copies)
-        starts = np.flatnonzero((kept > 0) & (values > 0))
-        lower = float(values[starts[0]]) if starts.size else float("nan")
-        weights = kept[inside]
-        count = int(weights.sum())
-        rows.append(_sums(count, float(weights @ logs), float(weights @ x_in), lower))
+        kept = np.clip(ranked - (min_count - 1), 0, copies) * positive
+        starts = np.flatnonzero(kept)
+        lower = float(low[starts[0]]) if starts.size else float("nan")
+        rows.append(_sums(int(kept.sum()), float(kept @ logs), float(kept @ low), lower))
     return rows
 
 
