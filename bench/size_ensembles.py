@@ -21,6 +21,11 @@ stops before starting a packing once that much wall time has passed.
 
 Prints one row per packing made and, at the end, the count per size; ``--json FILE`` writes
 every row of the folder (made now or before). Then ``calippso report DIR/d3_n*`` pools them.
+
+``--estimate`` makes nothing: per size it fits γ, θ_e, θ_ℓ and θ on the packings made (the
+defaults of `calippso.analysis`) and prints how many packings would bring the interval of γ
+to ± `GAMMA_HALF_WIDTH` and that of θ_e to ± `THETA_E_HALF_WIDTH`
+(`calippso.analysis.packings_needed`: the width falls as 1/√packings).
 """
 
 from __future__ import annotations
@@ -38,6 +43,9 @@ import numpy as np
 MAX_FORCE_BALANCE = 1e-12
 #: Seconds between two checkpoint writes of a quench.
 CHECKPOINT_EVERY = 30.0
+#: Half-widths of the 95 % intervals the study aims at (issue targets).
+GAMMA_HALF_WIDTH = 0.02
+THETA_E_HALF_WIDTH = 0.04
 
 
 @contextmanager
@@ -106,6 +114,42 @@ def make_packing(n: int, d: int, seed: int, folder: Path, lock: str | None) -> d
     return row
 
 
+def estimate(out: Path, d: int) -> list[dict]:
+    """Per size folder: the exponents of its packings and the packings needed for the
+    target intervals (printed as a table)."""
+    import calippso
+    from calippso.analysis import critical_exponents, packings_needed
+
+    rows = []
+    print("| N | packings | γ | θ_e | θ_ℓ | θ | packings for γ ± "
+          f"{GAMMA_HALF_WIDTH:g} | for θ_e ± {THETA_E_HALF_WIDTH:g} |")
+    print("|---|---|---|---|---|---|---|---|")
+    for folder in sorted(out.glob(f"d{d}_n*"), key=lambda f: int(f.name.split("_n")[1])):
+        files = sorted(folder.glob("packing_*.npz"))
+        if not files:
+            continue
+        results = [calippso.load_result(f) for f in files]
+        try:
+            fitted = critical_exponents(results)
+        except ValueError as error:
+            print(f"| {folder.name} | {len(files)} | not fitted: {error} |")
+            continue
+        cells = {name: f"{e.value:.3f} [{e.interval[0]:.3f}, {e.interval[1]:.3f}]"
+                 for name, e in fitted.items()}
+        need = {"gamma": packings_needed(fitted["gamma"].interval, len(files),
+                                         GAMMA_HALF_WIDTH),
+                "theta_e": packings_needed(fitted["theta_e"].interval, len(files),
+                                           THETA_E_HALF_WIDTH)}
+        n = results[0].packing.n
+        print(f"| {n} | {len(files)} | {cells['gamma']} | {cells['theta_e']} | "
+              f"{cells['theta_l']} | {cells['theta']} | {need['gamma']} | {need['theta_e']} |",
+              flush=True)
+        rows.append({"n": n, "packings": len(files), "needed": need,
+                     **{name: {"value": e.value, "interval": list(e.interval)}
+                        for name, e in fitted.items()}})
+    return rows
+
+
 def parse_plan(items: list[str]) -> list[tuple[int, int]]:
     """"N:COUNT" items as (N, count) pairs, in the order given."""
     plan = []
@@ -138,7 +182,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--max-minutes", type=float, default=None)
     parser.add_argument("--retry-failed", action="store_true")
     parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--estimate", action="store_true",
+                        help="fit the packings made and print the packings needed")
     args = parser.parse_args(argv)
+    if args.estimate:
+        rows = estimate(args.out, args.d)
+        if args.json is not None:
+            args.json.write_text(json.dumps(rows, indent=1) + "\n")
+        return
     lock = None if args.lock == "none" else args.lock
     start = time.monotonic()
     print("| N | seed | quench s | jam s | LPs | phi_J | force balance | certified |")
