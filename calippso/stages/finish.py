@@ -25,7 +25,7 @@ from .lp_step import record_lp, solve_lp
 from .newton_stage import newton
 from .state import LoopState, Run
 
-__all__ = ["finish", "CLEANUP_STEP", "LOOSE_INPUT_GAP"]
+__all__ = ["finish", "final_notes", "CLEANUP_STEP", "LOOSE_INPUT_GAP"]
 
 #: Bound on displacements in the final clean-up LP (mean diameters); at a jammed state the
 #: solution is ~0 and the bound is inactive. Also the bound of the LP that verifies a
@@ -107,7 +107,7 @@ def finish(run: Run, state: LoopState, network: ContactNetwork,
             _note(run, undecided)
         if network.n_stable == 0 or gap < 0 or unjamming is not None:
             reason, converged = StopReason.NOT_RIGID, False
-    notes = _final_notes(run, reason)
+    notes = final_notes(run, reason)
     history = run.history
     return JammingResult(
         packing=final, contacts=contacts[order], forces=forces / mean_force,
@@ -169,7 +169,7 @@ def _note(run: Run, note: str | None) -> None:
         run.history.note(note)
 
 
-def _final_notes(run: Run, reason: StopReason) -> list[str]:
+def final_notes(run: Run, reason: StopReason) -> list[str]:
     """The run's notes, with the count of retried LPs and, for a loose input that did not
     converge, the advice to precompress it."""
     notes = list(run.history.notes)

@@ -28,7 +28,7 @@ from ..geometry.sheared_search import sheared_pairs_within
 from ..history import History, StopReason, status_sentence
 from ..result import JammingResult
 from ..step import Step
-from .finish import _final_notes
+from .finish import final_notes
 from .state import LoopState, Run
 
 __all__ = ["strict_finish", "balanced_network"]
@@ -89,7 +89,7 @@ def strict_finish(run: Run, state: LoopState, network: ContactNetwork, reason: S
             category = strict_category(packing, i, j, forces, rattlers, history)
             if category is not None and category != "strict":
                 reason = StopReason.NOT_RIGID
-    notes = _final_notes(run, reason)
+    notes = final_notes(run, reason)
     return JammingResult(
         packing=packing, contacts=np.stack([i, j], axis=1).astype(np.int64),
         forces=forces, rattlers=rattlers, converged=reason.jammed,
