@@ -7,11 +7,17 @@ pivots that reached a jamming point ("pivots") and every certified Newton stage 
 prints them when verbose, and stores them as the structured array `JammingResult.history`.
 `StopReason` says why the loop stopped, and `status_sentence` turns it, the last step and
 the notes into the one sentence users read.
+
+Notes that name one LP and differ only in their numbers ("LP 12 converged with a hypostatic
+network ... (gap -1): ...", written again at LP 15 with gap -2) are folded into one, where
+the first stood: "LPs 12-15 (2 times) converged with a hypostatic network ... (gap -2 to
+-1): ...", with the count, the range of LPs and the range of every other number.
 """
 
 from __future__ import annotations
 
 import enum
+import re
 import time
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, replace
@@ -22,7 +28,7 @@ from .geometry.contacts import isostaticity_gap
 
 __all__ = ["StopReason", "Record", "History", "HISTORY_COLUMNS", "HISTORY_DTYPE",
            "empty_history", "history_from_records", "status_sentence", "reason_from_status",
-           "STALL_LPS"]
+           "STALL_LPS", "fold_note"]
 
 #: The loop stops as stalled (not converged) after this many LPs without progress
 #: (`History.stalled`).
@@ -144,8 +150,9 @@ class History:
 
     # ------------------------------------------------------------------ adding
     def note(self, text: str) -> None:
-        """Add a note: a clause of the status sentence, and an entry of `JammingResult.notes`."""
-        self.notes.append(text)
+        """Add a note: a clause of the status sentence, and an entry of `JammingResult.notes`.
+        A note that repeats an earlier one for another LP is folded into it (`fold_note`)."""
+        self.notes = fold_note(self.notes, text)
 
     def add_lp(self, *, stage: str, solver_time: float, gamma: float, max_displacement: float,
                rows: int, step_bound: float, n_contacts: int, n_stable: int,
@@ -255,6 +262,90 @@ class History:
         self.notes = list(notes)
         if self.records:
             self.start -= self.records[-1].wall_time
+
+
+#: The LP a note names ("LP 12"), or the LPs of a folded note ("LPs 3-40 (20 times)",
+#: "LP 7 (2 times)").
+_LP_MENTION = re.compile(r"\bLPs? (\d+)(?:-(\d+))?(?: \((\d+) times\))?")
+#: A number in a note, or the range of a folded note's numbers ("-3 to -1").
+_NUMBER = r"[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?"
+_VALUE = re.compile(rf"(?<![\w.])({_NUMBER})(?: to ({_NUMBER}))?(?![\w.])")
+#: Stands for the LP mention in the form of a note.
+_MENTION_MARK = "\0"
+
+
+@dataclass(frozen=True)
+class _Fold:
+    """A note naming LPs, taken apart: its words (`form`, the text between its numbers, the
+    LP mention marked), the LPs it covers and the range of each of its other numbers (as
+    written)."""
+
+    form: tuple[str, ...]
+    first: int
+    last: int
+    count: int
+    values: tuple[tuple[str, str], ...]
+
+    @classmethod
+    def parse(cls, text: str) -> "_Fold | None":
+        """The note taken apart, or None when it names no single LP (or LP range)."""
+        mentions = list(_LP_MENTION.finditer(text))
+        if len(mentions) != 1:
+            return None
+        mention = mentions[0]
+        first = int(mention.group(1))
+        last = int(mention.group(2) or first)
+        count = int(mention.group(3) or 1)
+        rest = text[:mention.start()] + _MENTION_MARK + text[mention.end():]
+        pieces = _VALUE.split(rest)   # words, then (low, high or None) per number
+        form = tuple(pieces[::3])
+        values = tuple((low, high or low) for low, high in zip(pieces[1::3], pieces[2::3]))
+        return cls(form, first, last, count, values)
+
+    def merged(self, other: "_Fold") -> "_Fold":
+        """The fold of both (same `form`)."""
+        values = tuple((min(a[0], b[0], key=float), max(a[1], b[1], key=float))
+                       for a, b in zip(self.values, other.values))
+        return _Fold(self.form, min(self.first, other.first), max(self.last, other.last),
+                     self.count + other.count, values)
+
+    def text(self) -> str:
+        if self.count == 1:
+            mention = f"LP {self.first}"
+        elif self.first == self.last:
+            mention = f"LP {self.first} ({self.count} times)"
+        else:
+            mention = f"LPs {self.first}-{self.last} ({self.count} times)"
+        numbers = [low if float(low) == float(high) else f"{low} to {high}"
+                   for low, high in self.values]
+        words = [piece for pair in zip(self.form, [*numbers, ""]) for piece in pair]
+        return "".join(words).replace(_MENTION_MARK, mention)
+
+
+def fold_note(notes: list[str], text: str) -> list[str]:
+    """`notes` with `text` added: folded into the earlier note that has the same words and
+    names another LP (or the same), appended otherwise.
+
+    Parameters
+    ----------
+    notes : list of str
+        The notes so far (folded ones included, so that a resumed run folds on).
+    text : str
+        The new note.
+
+    Returns
+    -------
+    list of str
+        A new list; a folded note keeps the place of the first of its notes, with the
+        count of its notes, the range of their LPs and the range of every other number.
+    """
+    new = _Fold.parse(text)
+    if new is not None:
+        for k, note in enumerate(notes):
+            old = _Fold.parse(note)
+            if old is not None and old.form == new.form:
+                return [*notes[:k], old.merged(new).text(), *notes[k + 1:]]
+    return [*notes, text]
 
 
 def empty_history() -> np.ndarray:

@@ -58,3 +58,48 @@ def test_records_round_trip_through_the_history_array():
         np.testing.assert_array_equal(again.to_array()[name], array[name])
     assert again.notes == ["a note"]
     assert again.records[-1].min_gap == 2e-16 and again.lps_solved == 1
+
+
+def _kick(lp: int, what: str = "converged", gap: int = -1) -> str:
+    return (f"LP {lp} {what} with a hypostatic network in a container (gap {gap:+d}): the loop "
+            f"went on from a fresh step bound")
+
+
+def test_repeated_notes_fold_into_one_with_a_count_and_the_range_of_lps():
+    history = History(d=3, start=0.0)
+    history.note("network first: the input holds no isostatic contact network")
+    for lp in range(3, 23):
+        history.note(_kick(lp, gap=-1 - lp % 2))
+    history.note("3 pair(s) outside the LP overlapped after LP 23; re-solved with them")
+    history.note(_kick(24, what="grew sqrt(Gamma) by 3.2e-10"))
+    history.note(_kick(25, what="grew sqrt(Gamma) by 9.0e-11"))
+    assert history.notes == [
+        "network first: the input holds no isostatic contact network",
+        "LPs 3-22 (20 times) converged with a hypostatic network in a container "
+        "(gap -2 to -1): the loop went on from a fresh step bound",
+        "3 pair(s) outside the LP overlapped after LP 23; re-solved with them",
+        "LPs 24-25 (2 times) grew sqrt(Gamma) by 9.0e-11 to 3.2e-10 with a hypostatic "
+        "network in a container (gap -1): the loop went on from a fresh step bound"]
+
+
+def test_a_single_note_and_notes_without_an_lp_are_kept_as_written():
+    history = History(d=3, start=0.0)
+    for text in [_kick(4), "contact equations solved by Newton after 12 LPs; certified",
+                 "contact equations solved by Newton after 12 LPs; certified"]:
+        history.note(text)
+    assert history.notes == [_kick(4), *["contact equations solved by Newton after 12 LPs; "
+                                         "certified"] * 2]
+
+
+def test_a_resumed_history_folds_on_from_its_folded_notes():
+    history = History(d=3, start=0.0)
+    for lp in (5, 9):
+        history.note(_kick(lp))
+    resumed = History(d=3, start=0.0)
+    resumed.restore({name: np.zeros(0) for name in history.to_array().dtype.names},
+                    history.notes)
+    resumed.note(_kick(3, gap=+1))
+    resumed.note(_kick(3, gap=+1))
+    assert resumed.notes == ["LPs 3-9 (4 times) converged with a hypostatic network in a "
+                             "container (gap -1 to +1): the loop went on from a fresh step "
+                             "bound"]
