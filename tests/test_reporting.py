@@ -79,9 +79,8 @@ def test_contact_numbers_show_both_the_mean_and_2d(jammed_2d, tmp_path, monkeypa
     from calippso.reporting import figures
 
     drawn = []
-    save = figures.save_figure
-    monkeypatch.setattr(figures, "save_figure",
-                        lambda fig, path: drawn.append(fig) or save(fig, path))
+    save = figures._save
+    monkeypatch.setattr(figures, "_save", lambda fig, path: drawn.append(fig) or save(fig, path))
     analysis = analyze(jammed_2d, n_bootstrap=0)
     figures.plot_contact_numbers(analysis, tmp_path / "contact_numbers.png")
     ax = drawn[0].axes[0]

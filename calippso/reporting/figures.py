@@ -15,7 +15,7 @@ from ..result import JammingResult
 from ._matplotlib import pyplot
 
 __all__ = ["plot_forces", "plot_gaps", "plot_contact_numbers", "plot_history", "plot_walls",
-           "save_figure", "thinned"]
+           "thinned"]
 
 _DPI = 120
 #: Smallest value drawn on a log axis (an exact zero is drawn there).
@@ -33,7 +33,7 @@ _WALL_FORCE_BINS = 20
 MAX_DRAWN_POINTS = 4000
 
 
-def save_figure(fig, path: Path) -> Path:
+def _save(fig, path: Path) -> Path:
     """Lay out `fig`, write it to `path` as PNG, close it; returns `path`."""
     fig.tight_layout()
     fig.savefig(path, dpi=_DPI)
@@ -90,7 +90,7 @@ def plot_forces(analysis: Analysis, path: Path) -> Path:
     ax.set_ylabel("G(f)  (cumulative distribution)")
     ax.set_title(_title(analysis, "forces"))
     ax.legend(fontsize=7, loc="lower right")
-    return save_figure(fig, path)
+    return _save(fig, path)
 
 
 def plot_gaps(analysis: Analysis, path: Path) -> Path:
@@ -114,7 +114,7 @@ def plot_gaps(analysis: Analysis, path: Path) -> Path:
     right.set_ylabel("g(h)")
     right.legend(fontsize=7)
     fig.suptitle(_title(analysis, "gaps"), fontsize=10)
-    return save_figure(fig, path)
+    return _save(fig, path)
 
 
 def plot_contact_numbers(analysis: Analysis, path: Path) -> Path:
@@ -141,7 +141,7 @@ def plot_contact_numbers(analysis: Analysis, path: Path) -> Path:
     ax.set_xlabel("contacts per stable particle (red: bucklers, d + 1)")
     ax.set_ylabel("fraction of stable particles")
     ax.set_title(_title(analysis, "contact numbers"))
-    return save_figure(fig, path)
+    return _save(fig, path)
 
 
 def _side_label(ax, x: float, text: str, left: bool, color: str) -> None:
@@ -177,7 +177,7 @@ def plot_history(result: JammingResult, path: Path, title: str = "") -> Path:
     bottom.set_xlabel("wall time (s, cumulative)")
     top.set_title(title or f"N = {result.packing.n}, d = {result.d}, {result.solver}: "
                   f"{result.iterations} LPs, {result.wall_time:.1f} s", fontsize=10)
-    return save_figure(fig, path)
+    return _save(fig, path)
 
 
 def plot_walls(analysis: Analysis, path: Path) -> Path:
@@ -216,7 +216,7 @@ def plot_walls(analysis: Analysis, path: Path) -> Path:
     right.set_xlim(0.0, float(profile.distance[-1]))
     right.legend(fontsize=8)
     fig.suptitle(_title(analysis, "walls"), fontsize=10)
-    return save_figure(fig, path)
+    return _save(fig, path)
 
 
 def _title(analysis: Analysis, what: str) -> str:
