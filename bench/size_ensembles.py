@@ -7,8 +7,9 @@ when certified: converged, isostatic, every force positive and the force balance
 
     python bench/size_ensembles.py --out DIR --plan 1024:80 2048:40 4096:20 8192:10
 
-which makes seeds 1–80 at N = 1024, then seeds 1–40 at N = 2048, and so on (d = 3;
-``--d 4`` for d = 4; ``--first-seed`` moves the seeds). The run resumes: a packing whose
+which makes seeds 1–80 at N = 1024, seeds 1–40 at N = 2048, and so on, the sizes
+interleaved in proportion to their counts (d = 3; ``--d 4`` for d = 4; ``--first-seed``
+moves the seeds). The run resumes: a packing whose
 file exists is skipped, and a quench interrupted midway continues from its checkpoint
 (``state_<seed>.npz``, removed once the packing is written). Every packing is written
 atomically as ``DIR/d<d>_n<N>/packing_<seed>.npz`` (the full `JammingResult`) with
@@ -162,6 +163,21 @@ def parse_plan(items: list[str]) -> list[tuple[int, int]]:
     return plan
 
 
+def schedule(plan: list[tuple[int, int]], first_seed: int) -> list[tuple[int, int]]:
+    """(N, seed) in the order made: the sizes of the plan interleaved in proportion to their
+    counts (next, the size with the smallest share of its count done; ties: the smaller N),
+    so that an interrupted run leaves every size with its share."""
+    done = {n: 0 for n, _ in plan}
+    counts = dict(plan)
+    order = []
+    while any(done[n] < counts[n] for n in counts):
+        n = min((n for n in counts if done[n] < counts[n]),
+                key=lambda n: (done[n] / counts[n], n))
+        order.append((n, first_seed + done[n]))
+        done[n] += 1
+    return order
+
+
 def folder_rows(out: Path) -> list[dict]:
     """Every packing record under `out` (certified and failed)."""
     rows = []
@@ -194,22 +210,21 @@ def main(argv: list[str] | None = None) -> None:
     start = time.monotonic()
     print("| N | seed | quench s | jam s | LPs | phi_J | force balance | certified |")
     print("|---|---|---|---|---|---|---|---|", flush=True)
-    for n, count in parse_plan(args.plan):
+    for n, seed in schedule(parse_plan(args.plan), args.first_seed):
         folder = args.out / f"d{args.d}_n{n}"
         folder.mkdir(parents=True, exist_ok=True)
-        for seed in range(args.first_seed, args.first_seed + count):
-            done = (folder / f"packing_{seed}.npz").exists()
-            failed = (folder / f"packing_{seed}.failed.json").exists()
-            if done or (failed and not args.retry_failed):
-                continue
-            if args.max_minutes is not None and time.monotonic() - start > 60 * args.max_minutes:
-                print(f"stopped after {args.max_minutes:g} minutes", flush=True)
-                return _finish(args)
-            row = make_packing(n, args.d, seed, folder, lock)
-            print(f"| {n} | {seed} | {row['quench_s']:.1f} | {row['jam_s']:.1f} | "
-                  f"{row.get('lps', '-')} | {row.get('phi', float('nan')):.6f} | "
-                  f"{row.get('force_balance', float('nan')):.1e} | {row['certified']} |",
-                  flush=True)
+        done = (folder / f"packing_{seed}.npz").exists()
+        failed = (folder / f"packing_{seed}.failed.json").exists()
+        if done or (failed and not args.retry_failed):
+            continue
+        if args.max_minutes is not None and time.monotonic() - start > 60 * args.max_minutes:
+            print(f"stopped after {args.max_minutes:g} minutes", flush=True)
+            return _finish(args)
+        row = make_packing(n, args.d, seed, folder, lock)
+        print(f"| {n} | {seed} | {row['quench_s']:.1f} | {row['jam_s']:.1f} | "
+              f"{row.get('lps', '-')} | {row.get('phi', float('nan')):.6f} | "
+              f"{row.get('force_balance', float('nan')):.1e} | {row['certified']} |",
+              flush=True)
     _finish(args)
 
 
