@@ -49,6 +49,11 @@ How each class is decided (`ClassTest.method`):
   trivial motions, and ε must satisfy σ₀ : ε ≥ 0 and −tr ε ≥ 0, with σ₀ = Σ_k f₀ₖ u_k n_kᵀ.
   The two LPs run on these two rows over the d(d+1)/2 strain entries; an unjamming strain
   is completed by the displacements that solve the contact rows (sparse least squares).
+  In a container with a single periodic axis z the strain is ε_zz alone, and any positive
+  self-stress f₀ of the collective test decides, however many there are: the volume row
+  asks ε_zz ≤ 0, and f₀ with the volume force g = σ₀,zz is a certificate when σ₀,zz > 0
+  (every compression along z closes a contact), while the kernel of the strict rows is
+  that of the collective ones.
 
 The local test uses the rows of every particle alone (its neighbours fixed, so no motion is
 trivial); the collective test sets ε = 0; the strict test adds the strain columns and the
@@ -59,7 +64,10 @@ Counting: a strictly jammed network needs d(d+1)/2 − 1 more contacts than an i
 N_c ≥ d (N_s − 1) + d(d+1)/2, so the strict test of an isostatic network always fails, with a
 strain that keeps every contact closed to first order.
 
-The LPs are solved by HiGHS (`scipy.optimize.linprog`).
+The LPs are solved by HiGHS (`scipy.optimize.linprog`): by the dual simplex method, and
+when HiGHS fails on such a degenerate cone (it can end with an unknown status), again
+without presolve, then by the interior-point method; `calippso.errors.SolverError` (one
+line) when all three fail.
 """
 
 from __future__ import annotations
@@ -70,6 +78,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .errors import SolverError
 from .geometry.neighbors import NeighborSearch
 from .geometry.packing import Packing, minimum_image
 from .geometry.rattlers import remove_rattlers
@@ -101,6 +110,9 @@ DECISION_TOLERANCE = 1e-7
 WITNESS_TOLERANCE = 1e-8
 #: HiGHS's primal and dual feasibility tolerances.
 LP_TOLERANCE = 1e-10
+#: The HiGHS methods tried in turn on an LP of the test, and their options beyond the
+#: tolerances: the dual simplex method, the same without presolve, the interior-point method.
+LP_ATTEMPTS = (("highs-ds", {}), ("highs-ds", {"presolve": False}), ("highs-ipm", {}))
 #: Forces whose net force on every particle is below this times the largest force are a
 #: self-stress.
 BALANCE_TOLERANCE = 1e-9
@@ -505,28 +517,38 @@ def _strict(network: _Network, packing: Packing, rng, collective: _Outcome) -> _
     trivial = np.vstack([network.trivial, np.zeros((matrix.shape[1] - n_motion,
                                                     network.trivial.shape[1]))])
     independent = n_rows - (n_motion - network.trivial.shape[1])   # self-stresses
-    if collective.method != "self-stress" or independent != 1:
-        jammed, motion, opens, duals = _cone_test(matrix, trivial, rng)
-        if not jammed:
-            return _Outcome(False, "linear programs", motion, opens)
-        return _Outcome(True, "linear programs", None, False, duals[:n_rows], duals[n_rows])
-    forces = collective.forces
     contact_rows = matrix[:n_rows].tocsc()
     moves, strains = contact_rows[:, :n_motion], contact_rows[:, n_motion:]
+    forces = collective.forces
+    single = collective.method == "self-stress" and independent == 1
+    one_axis = (int(packing.periodic.sum()) == 1 and forces is not None
+                and forces.min() > 0 and _balanced(moves, forces))
+    if not (single or one_axis):
+        return _strict_by_lps(matrix, n_rows, trivial, rng)
     stress = strains.T @ forces                               # σ₀ : ε per strain entry
     volume = matrix[n_rows, n_motion:].toarray().ravel()      # −tr ε
     jammed, strain, _, duals = _cone_test(sp.csr_matrix(np.stack([stress, volume])), None, rng)
     if jammed:
         return _Outcome(True, "strain", None, False, duals[0] * forces, duals[1])
+    if not single:   # one of several self-stresses: its strain is no witness
+        return _strict_by_lps(matrix, n_rows, trivial, rng)
     # contact rates along the self-stress (≥ 0) that make the rows solvable for Δr
     rates = float(stress @ strain) / float(forces @ forces) * forces
     displacement = _solve_rows(moves, rates - strains @ strain, network, packing, forces)
     motion = _project(np.concatenate([displacement, strain]), trivial)
     closing = matrix @ motion
-    if not _is_witness(closing, motion):
-        raise RuntimeError("the strict test's unjamming strain found no displacements that "
-                           "keep the contacts closed (round-off)")
+    if not _is_witness(closing, motion):   # round-off in the displacements: the LPs decide
+        return _strict_by_lps(matrix, n_rows, trivial, rng)
     return _Outcome(False, "strain", motion, bool(closing.max() > DECISION_TOLERANCE))
+
+
+def _strict_by_lps(matrix: sp.csr_matrix, n_rows: int, trivial: np.ndarray,
+                   rng) -> _Outcome:
+    """The strict test by the linear programs on the strict rows (contacts, volume)."""
+    jammed, motion, opens, duals = _cone_test(matrix, trivial, rng)
+    if not jammed:
+        return _Outcome(False, "linear programs", motion, opens)
+    return _Outcome(True, "linear programs", None, False, duals[:n_rows], duals[n_rows])
 
 
 def _solve_rows(moves: sp.csc_matrix, target: np.ndarray, network: _Network,
@@ -612,14 +634,19 @@ def _floppy_mode(matrix: sp.csr_matrix, network: _Network,
 
 
 def _solve(cost, **constraints):
+    """The LP min cost·x over the motion box and `constraints`, by the first of
+    `LP_ATTEMPTS` that solves it."""
     from scipy.optimize import linprog
 
-    answer = linprog(cost, bounds=(-MOTION_BOUND, MOTION_BOUND), method="highs-ds",
-                     options={"primal_feasibility_tolerance": LP_TOLERANCE,
-                              "dual_feasibility_tolerance": LP_TOLERANCE}, **constraints)
-    if answer.status != 0:
-        raise RuntimeError(f"the jamming test's LP failed: {answer.message}")
-    return answer
+    for method, options in LP_ATTEMPTS:
+        answer = linprog(cost, bounds=(-MOTION_BOUND, MOTION_BOUND), method=method,
+                         options={"primal_feasibility_tolerance": LP_TOLERANCE,
+                                  "dual_feasibility_tolerance": LP_TOLERANCE, **options},
+                         **constraints)
+        if answer.status == 0:
+            return answer
+    raise SolverError(f"the jamming test's LP failed by each of the {len(LP_ATTEMPTS)} HiGHS "
+                      f"methods tried: {answer.message}")
 
 
 def _project(motion: np.ndarray, trivial: np.ndarray | None) -> np.ndarray:

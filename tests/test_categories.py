@@ -233,6 +233,37 @@ def test_walls_stay_and_the_periodic_axis_strains():
     assert category.wall_forces.min() > 0
 
 
+def test_one_periodic_axis_is_decided_by_any_positive_self_stress():
+    """The slab is hyperstatic (many self-stresses): with x the only periodic axis, the
+    collective certificate with the volume force g = σ_xx V proves strict jamming."""
+    slab = _triangular_slab(6, 4)
+    category = jamming_category(slab)
+    assert [test.method for test in category.tests] == ["linear programs", "self-stress",
+                                                        "strain"]
+    assert category.forces.min() > 0 and category.balance < BALANCE_TOLERANCE
+    u = _separations(slab, category.contacts)
+    normals = u / np.linalg.norm(u, axis=1)[:, None]
+    stress_xx = float(np.sum(category.forces * u[:, 0] * normals[:, 0])) / slab.volume
+    assert category.pressure == pytest.approx(stress_xx, rel=1e-12)
+
+
+def test_an_lp_that_highs_fails_is_solved_again_or_refused_in_one_line(monkeypatch):
+    """The strict test's cone LP by the next method when one fails (an iteration limit of 0
+    here; HiGHS can end a degenerate cone with an unknown status); SolverError when all
+    fail."""
+    from calippso import categories
+    from calippso.errors import SolverError
+
+    crystal = lattices.fcc(2)
+    failing = ("highs-ds", {"maxiter": 0})
+    monkeypatch.setattr(categories, "LP_ATTEMPTS", (failing, *categories.LP_ATTEMPTS))
+    assert jamming_category(crystal).category == "strict"
+    monkeypatch.setattr(categories, "LP_ATTEMPTS", (failing,))
+    with pytest.raises(SolverError, match="the jamming test's LP failed") as refused:
+        jamming_category(crystal)
+    assert "\n" not in str(refused.value)
+
+
 def test_a_container_without_periodic_axis_is_refused_for_the_strict_test():
     slab = _triangular_slab(6, 4)
     closed = Packing(slab.positions + [0.5, 0.0], slab.diameters, slab.box + [1.0, 0.0],
