@@ -233,6 +233,30 @@ def test_walls_stay_and_the_periodic_axis_strains():
     assert category.wall_forces.min() > 0
 
 
+def _fcc_slab(cells: int) -> Packing:
+    """FCC of unit spheres with its (100) layers between flat walls in x that touch the
+    first and last layers, periodic in y and z."""
+    half = np.sqrt(2.0) / 2    # half the cubic cell
+    sites = [(0.5 + i * half, j * half, k * half) for i in range(2 * cells)
+             for j in range(2 * cells) for k in range(2 * cells) if (i + j + k) % 2 == 0]
+    box = np.array([1.0 + (2 * cells - 1) * half, 2 * cells * half, 2 * cells * half])
+    return Packing(np.array(sites), np.ones(len(sites)), box, Boundaries.walls(3, "x"))
+
+
+def test_a_hyperstatic_slab_with_two_periodic_axes_is_decided_by_the_lps():
+    """The strict LPs in a container: the stress of the certificate is isotropic on the
+    periodic axes y, z (the walls take the load along x)."""
+    slab = _fcc_slab(2)
+    category = jamming_category(slab)
+    assert category.category == "strict" and category.tests[-1].method == "linear programs"
+    assert category.forces.min() > 0 and category.wall_forces.min() > 0
+    assert category.balance < BALANCE_TOLERANCE
+    u = _separations(slab, category.contacts)
+    normals = u / np.linalg.norm(u, axis=1)[:, None]
+    stress = np.einsum("m,ma,mb->ab", category.forces, u, normals)[1:, 1:] / slab.volume
+    np.testing.assert_allclose(stress, category.pressure * np.eye(2), atol=1e-10)
+
+
 def test_one_periodic_axis_is_decided_by_any_positive_self_stress():
     """The slab is hyperstatic (many self-stresses): with x the only periodic axis, the
     collective certificate with the volume force g = σ_xx V proves strict jamming."""

@@ -55,7 +55,7 @@ def write(obj, path: Path) -> Path:
         )
     if packing.boundaries.cylinder_axes:
         raise ValueError(f"extended XYZ cannot hold a cylinder ({packing.boundaries.describe()})"
-                         f": write .npz or .h5 instead")
+                         f": write .npz, .h5 or .gsd instead")
     n, d = packing.n, packing.d
     positions = np.zeros((n, 3))
     positions[:, :d] = packing.positions

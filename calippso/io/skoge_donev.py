@@ -97,8 +97,12 @@ def write(packing: Packing, path: Path) -> Path:
     """
     refuse_sheared(packing, "Skoge-Donev files")
     if not packing.boundaries.is_periodic:
+        small = packing.d <= 3   # extended XYZ and GSD; XYZ holds flat walls only
+        formats = [".npz", ".h5", *([".xyz"] if small and not packing.boundaries.cylinder_axes
+                                    else []), *([".gsd"] if small else [])]
         raise ValueError(f"Skoge-Donev files hold periodic packings here, this one has "
-                         f"{packing.boundaries.describe()}: write .npz, .h5 or .xyz instead")
+                         f"{packing.boundaries.describe()}: write {', '.join(formats[:-1])} "
+                         f"or {formats[-1]} instead")
     sizes, inverse = np.unique(packing.diameters, return_inverse=True)
     order = np.argsort(inverse, kind="stable")
     counts = np.bincount(inverse, minlength=sizes.size)
