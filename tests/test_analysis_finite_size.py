@@ -60,6 +60,21 @@ def test_gap_fit_recovers_gamma_of_a_power_law_with_cutoff(size):
               seed=size + 1)
 
 
+def test_a_floor_above_a_depletion_recovers_gamma():
+    """Gaps with density h^−γ (1 − e^(−√(h/h₀))), h₀ = 1e-6 (a depletion of the smallest
+    gaps, as in a finite packing): from the 10th smallest value the fit is biased low, from
+    `lower` = 100 h₀ it recovers γ."""
+    def depleted(rng, size):
+        h = rng.gamma(1 - GAMMA, 1.0, size)
+        return h[rng.random(h.size) < 1 - np.exp(-np.sqrt(h / 1e-6))]
+
+    _recovers("gamma", GAMMA, depleted, 200_000, seed=12, lower=1e-4)
+    rng = np.random.default_rng(13)
+    ranked = [exponent_from_sample("gamma", _grouped(depleted(rng, 200_000), 20),
+                                   n_bootstrap=0).value for _ in range(SAMPLES)]
+    assert np.mean(ranked) < GAMMA - 3 * np.std(ranked) / np.sqrt(SAMPLES)
+
+
 # --- extrapolation ---------------------------------------------------------------------------
 
 def _trend(sizes, limit, amplitude, omega, sigma, rng):
@@ -203,6 +218,16 @@ def test_finite_size_analysis_fits_each_size_as_on_its_own(two_sizes):
     for name, entry in summary["extrapolated"].items():
         assert entry["form"] == "inverse_n" and len(entry["interval"]) == 2
     assert summary["gap_cutoff"]["sizes"] == [64, 128]
+
+
+def test_gap_floor_starts_each_gamma_window_at_its_cutoff(two_sizes):
+    analysis = finite_size_analysis(two_sizes, n_bootstrap=20, gap_floor="cutoff")
+    for k, size in enumerate(analysis.by_size):
+        if "gamma" in size.exponents:
+            assert size.exponents["gamma"].fit.lower >= analysis.gap_cutoff.h_min[k]
+    assert analysis.to_dict()["gap_floor"] == "cutoff"
+    with pytest.raises(ValueError, match="gap_floor"):
+        finite_size_analysis(two_sizes, gap_floor="lowest")
 
 
 def test_finite_size_analysis_needs_two_sizes(two_sizes):

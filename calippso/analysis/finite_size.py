@@ -26,11 +26,13 @@ from .forces import DEFAULT_RULE, canonical_rule, split_forces
 from .gaps import DEFAULT_MAX_GAP, pooled_gaps
 from .sample import PooledSample
 
-__all__ = ["EXPONENT_NAMES", "FiniteSizeAnalysis", "SizeExponents", "exponent_samples",
+__all__ = ["EXPONENT_NAMES", "GAP_FLOORS", "FiniteSizeAnalysis", "SizeExponents", "exponent_samples",
            "finite_size_analysis", "packings_needed", "sizes_of"]
 
 #: Slack below an integer count of packings that round-off must not push to the next one.
 _ROUND_OFF = 1e-9
+#: Where the γ window of each size may start (`finite_size_analysis`).
+GAP_FLOORS = ("rank", "cutoff")
 #: The exponents fitted at each size, in report order.
 EXPONENT_NAMES = ("gamma", "theta_e", "theta_l", "theta")
 
@@ -62,7 +64,8 @@ class SizeExponents:
         """{"packings": …, name: {"value", "interval"} …} (None for an exponent not fitted)."""
         return {"packings": self.packings, **{
             name: ({"value": e.value, "interval": list(e.interval),
-                    "points_in_window": e.fit.n_points, "model": e.fit.model}
+                    "window": [e.fit.lower, e.fit.upper], "points_in_window": e.fit.n_points,
+                    "model": e.fit.model}
                    if (e := self.exponents.get(name)) is not None else None)
             for name in EXPONENT_NAMES}}
 
@@ -81,6 +84,8 @@ class FiniteSizeAnalysis:
     extrapolation_errors : dict of str to str
         Why an exponent has no extrapolation.
     gap_cutoff : GapCutoff
+    gap_floor : str
+        Where the γ window of each size started ("rank" or "cutoff").
     """
 
     d: int
@@ -88,6 +93,7 @@ class FiniteSizeAnalysis:
     extrapolated: dict[str, Extrapolation]
     extrapolation_errors: dict[str, str]
     gap_cutoff: GapCutoff
+    gap_floor: str = "rank"
 
     @property
     def sizes(self) -> tuple[int, ...]:
@@ -99,7 +105,7 @@ class FiniteSizeAnalysis:
         return {"by_size": {str(s.n): s.to_dict() for s in self.by_size},
                 "extrapolated": {name: e.to_dict() for name, e in self.extrapolated.items()},
                 "extrapolation_errors": dict(self.extrapolation_errors),
-                "gap_cutoff": self.gap_cutoff.to_dict()}
+                "gap_cutoff": self.gap_cutoff.to_dict(), "gap_floor": self.gap_floor}
 
 
 def sizes_of(results: JammingResult | Iterable[JammingResult]) -> np.ndarray:
@@ -122,7 +128,7 @@ def finite_size_analysis(results: JammingResult | Iterable[JammingResult], *,
                          max_gap: float = DEFAULT_MAX_GAP, rule: str = DEFAULT_RULE,
                          upper: dict[str, float] | None = None,
                          model: str | dict[str, str] | None = None, form: str = "auto",
-                         omega: float | None = None,
+                         omega: float | None = None, gap_floor: str = "rank",
                          samples: dict[str, PooledSample] | None = None,
                          **fit_options) -> FiniteSizeAnalysis:
     """Fit the exponents at each size and extrapolate them to N → ∞.
@@ -137,6 +143,11 @@ def finite_size_analysis(results: JammingResult | Iterable[JammingResult], *,
         Correction form of the extrapolation (`calippso.analysis.extrapolation`).
     omega : float, optional
         Fix ω of the form "power".
+    gap_floor : {"rank", "cutoff"}
+        Where the γ window of each size starts: at the 10th smallest pooled gap (the window
+        rule of `calippso.analysis.fits`, "rank"), or at that size's cut-off h_min(N), the
+        geometric mean of each packing's smallest gap ("cutoff"), above the finite-size
+        depletion of the smallest gaps.
     samples : dict, optional
         The pooled samples of `exponent_samples` for these results (one group per
         packing, in the order of `results`), when already computed.
@@ -153,6 +164,8 @@ def finite_size_analysis(results: JammingResult | Iterable[JammingResult], *,
     ValueError
         All packings of one size, or packings of several dimensions.
     """
+    if gap_floor not in GAP_FLOORS:
+        raise ValueError(f"gap_floor must be one of {GAP_FLOORS}, got {gap_floor!r}")
     items = as_results(results)
     n_of = sizes_of(items)
     sizes = np.unique(n_of)
@@ -162,18 +175,23 @@ def finite_size_analysis(results: JammingResult | Iterable[JammingResult], *,
     samples = samples or exponent_samples(items, max_gap=max_gap, rule=rule)
     uppers = {**UPPER, **(upper or {})}
     models = resolve_models(model)
+    own_samples = {int(n): {name: samples[name].select(np.flatnonzero(n_of == n))
+                            for name in EXPONENT_NAMES} for n in sizes}
+    cutoff = gap_cutoff({n: own["gamma"] for n, own in own_samples.items()},
+                        fit_options.get("confidence", 0.95))
     by_size = []
-    for n in sizes:
-        members = np.flatnonzero(n_of == n)
-        own = {name: samples[name].select(members) for name in EXPONENT_NAMES}
+    for k, (n, own) in enumerate(own_samples.items()):
         exponents, errors = {}, {}
         for name in EXPONENT_NAMES:
+            floor = ({"lower": float(cutoff.h_min[k])}
+                     if name == "gamma" and gap_floor == "cutoff" else {})
             try:
                 exponents[name] = exponent_from_sample(name, own[name], upper=uppers[name],
-                                                       model=models[name], **fit_options)
+                                                       model=models[name], **floor,
+                                                       **fit_options)
             except ValueError as error:
                 errors[name] = str(error)
-        by_size.append(SizeExponents(int(n), int(members.size), exponents, errors, own))
+        by_size.append(SizeExponents(n, own["gamma"].n_groups, exponents, errors, own))
     extrapolated, failures = {}, {}
     options = {k: fit_options[k] for k in ("confidence", "seed") if k in fit_options}
     for name in EXPONENT_NAMES:
@@ -185,10 +203,9 @@ def finite_size_analysis(results: JammingResult | Iterable[JammingResult], *,
                 **options)
         except ValueError as error:
             failures[name] = str(error)
-    cutoff = gap_cutoff({s.n: s.samples["gamma"] for s in by_size},
-                        fit_options.get("confidence", 0.95))
     return FiniteSizeAnalysis(d=items[0].d, by_size=tuple(by_size), extrapolated=extrapolated,
-                              extrapolation_errors=failures, gap_cutoff=cutoff)
+                              extrapolation_errors=failures, gap_cutoff=cutoff,
+                              gap_floor=gap_floor)
 
 
 def packings_needed(interval: tuple[float, float], packings: int, half_width: float) -> int:

@@ -287,19 +287,21 @@ def _mle(n_points: int, mean_log: float, mean_x: float, a: float, b: float,
 
 
 def _fit(values: np.ndarray, normalization: float, upper: float, min_count: int,
-         method: str, model: str) -> PowerLawFit:
+         method: str, model: str, lower: float = 0.0) -> PowerLawFit:
     """One fit of the sorted `values` (no interval); model "auto" is resolved here."""
     ranks = np.arange(1, values.size + 1)
-    inside = (ranks >= min_count) & (values <= upper) & (values > 0)
+    ranked = (ranks >= min_count) & (values > 0)
+    inside = ranked & (values <= upper) & (values >= lower)
     n_points = int(np.count_nonzero(inside))
     if n_points < MIN_POINTS:
+        floor = f"lower = {lower:g} and " if lower > 0 else ""
         raise ValueError(
-            f"only {n_points} sample points between the {min_count}-th smallest value and "
-            f"upper = {upper:g} (at least {MIN_POINTS} needed): pool more packings or raise "
-            f"the upper end of the window")
+            f"only {n_points} sample points between {floor}the {min_count}-th smallest value "
+            f"and upper = {upper:g} (at least {MIN_POINTS} needed): pool more packings or "
+            f"widen the window")
     x = values[inside]
     c = ranks[inside] / normalization
-    a, b = float(x[0]), float(upper)
+    a, b = max(float(lower), float(values[ranked][0])), float(upper)
     cutoff, p_value = 0.0, float("nan")
     if method == "lsq":
         slope = float(np.polyfit(np.log(x), np.log(c), 1)[0])
@@ -317,7 +319,7 @@ def _fit(values: np.ndarray, normalization: float, upper: float, min_count: int,
 def fit_cumulative_power_law(sample: PooledSample | np.ndarray, upper: float, *,
                              min_count: int = 10, method: str = "mle", model: str = "auto",
                              n_bootstrap: int = 1000, confidence: float = 0.95,
-                             seed: int = 0) -> PowerLawFit:
+                             seed: int = 0, lower: float = 0.0) -> PowerLawFit:
     """Fit C(x) ≈ A x^α to the small-x end of the empirical cumulative of `sample`.
 
     Parameters
@@ -341,6 +343,10 @@ def fit_cumulative_power_law(sample: PooledSample | np.ndarray, upper: float, *,
         Level of the percentile interval, in (0, 1).
     seed : int
         Seed of the resampling.
+    lower : float
+        A floor of the window (units of the sample): it starts at the larger of `lower` and
+        the `min_count`-th smallest value (default 0: the rank rule alone), e.g. above a
+        finite-size cut-off of the smallest values.
 
     Returns
     -------
@@ -355,6 +361,8 @@ def fit_cumulative_power_law(sample: PooledSample | np.ndarray, upper: float, *,
         sample = PooledSample.from_values(sample)
     if not upper > 0:
         raise ValueError(f"upper must be positive, got {upper!r}")
+    if not 0 <= lower < upper:
+        raise ValueError(f"lower must lie in [0, upper), got {lower!r}")
     if min_count < 1:
         raise ValueError(f"min_count must be at least 1, got {min_count!r}")
     if method not in FIT_METHODS:
@@ -366,14 +374,14 @@ def fit_cumulative_power_law(sample: PooledSample | np.ndarray, upper: float, *,
                          'law)')
     if not 0 < confidence < 1:
         raise ValueError(f"confidence must lie in (0, 1), got {confidence!r}")
-    fit = _fit(sample.values, sample.normalization, upper, min_count, method, model)
+    fit = _fit(sample.values, sample.normalization, upper, min_count, method, model, lower)
     by_packing = sample.n_groups >= MIN_GROUPS_FOR_PACKING_BOOTSTRAP
     rng = np.random.default_rng(seed)
     if method == "mle":
         slopes = _resampled_mle(sample, upper, min_count, n_bootstrap, rng, by_packing,
-                                fit.model)
+                                fit.model, lower)
     else:
-        slopes = _resampled_lsq(sample, upper, min_count, n_bootstrap, rng, by_packing)
+        slopes = _resampled_lsq(sample, upper, min_count, n_bootstrap, rng, by_packing, lower)
     tail = 50.0 * (1.0 - confidence)
     finite = slopes[np.isfinite(slopes)]
     interval = ((float(np.percentile(finite, tail)), float(np.percentile(finite, 100 - tail)))
@@ -386,13 +394,14 @@ def fit_cumulative_power_law(sample: PooledSample | np.ndarray, upper: float, *,
 
 
 def _resampled_mle(sample: PooledSample, upper: float, min_count: int, n_bootstrap: int,
-                   rng: np.random.Generator, by_packing: bool, model: str) -> np.ndarray:
+                   rng: np.random.Generator, by_packing: bool, model: str,
+                   lower: float) -> np.ndarray:
     """The likelihood slope of every bootstrap resample, from its window sums
     (`calippso.analysis.resampling`); nan where the window holds too few values or the
     cut-off fit does not converge."""
     slopes = np.full(n_bootstrap, np.nan)
     for k, sums in enumerate(window_sums(sample, upper, min_count, n_bootstrap, rng,
-                                         by_packing)):
+                                         by_packing, lower)):
         if sums.n_points < MIN_POINTS or not sums.lower < upper:
             continue
         try:
@@ -404,7 +413,7 @@ def _resampled_mle(sample: PooledSample, upper: float, min_count: int, n_bootstr
 
 
 def _resampled_lsq(sample: PooledSample, upper: float, min_count: int, n_bootstrap: int,
-                   rng: np.random.Generator, by_packing: bool) -> np.ndarray:
+                   rng: np.random.Generator, by_packing: bool, lower: float) -> np.ndarray:
     """The least-squares slope of every bootstrap resample (each one sorted and refitted)."""
     slopes = np.full(n_bootstrap, np.nan)
     if by_packing:
@@ -418,7 +427,8 @@ def _resampled_lsq(sample: PooledSample, upper: float, min_count: int, n_bootstr
             values = np.sort(sample.values[rng.integers(0, len(sample), len(sample))])
             normalization = sample.normalization
         try:
-            slopes[k] = _fit(values, normalization, upper, min_count, "lsq", "power_law").slope
+            slopes[k] = _fit(values, normalization, upper, min_count, "lsq", "power_law",
+                             lower).slope
         except ValueError:  # too few small values: left out of the interval
             continue
     return slopes

@@ -29,13 +29,14 @@ class WindowSums:
     Attributes
     ----------
     n_points : int
-        Values in the window (rank ≥ min_count, 0 < x ≤ upper).
+        Values in the window (rank ≥ min_count, 0 < x, floor ≤ x ≤ upper).
     mean_log : float
         Mean of log x over them (nan when the window is empty).
     mean_x : float
         Mean of x over them (units of the sample; nan when empty).
     lower : float
-        The window's lower end a (nan when the resample holds fewer than min_count values).
+        The window's lower end a: the larger of the floor and the min_count-th smallest
+        positive value (nan when the resample holds fewer than min_count values).
     """
 
     n_points: int
@@ -45,7 +46,8 @@ class WindowSums:
 
 
 def window_sums(sample: PooledSample, upper: float, min_count: int, n_resamples: int,
-                rng: np.random.Generator, by_packing: bool) -> list[WindowSums]:
+                rng: np.random.Generator, by_packing: bool,
+                lower: float = 0.0) -> list[WindowSums]:
     """The window statistics of `n_resamples` bootstrap resamples of `sample`.
 
     Parameters
@@ -61,6 +63,9 @@ def window_sums(sample: PooledSample, upper: float, min_count: int, n_resamples:
         Draws, per resample, ``rng.integers(0, n, n)``: n = packings when `by_packing`
         (whole packings resampled), n = values otherwise.
     by_packing : bool
+    lower : float
+        The window's floor: it starts at the larger of `lower` and the `min_count`-th
+        smallest positive value of the resample.
 
     Returns
     -------
@@ -68,17 +73,18 @@ def window_sums(sample: PooledSample, upper: float, min_count: int, n_resamples:
         One per resample, in the order drawn.
     """
     if by_packing:
-        return _by_packing(sample, upper, min_count, n_resamples, rng)
-    return _by_value(sample, upper, min_count, n_resamples, rng)
+        return _by_packing(sample, upper, min_count, n_resamples, rng, lower)
+    return _by_value(sample, upper, min_count, n_resamples, rng, lower)
 
 
 def _by_value(sample: PooledSample, upper: float, min_count: int, n_resamples: int,
-              rng: np.random.Generator) -> list[WindowSums]:
+              rng: np.random.Generator, lower: float) -> list[WindowSums]:
     values = sample.values
     k = values.size
     reach = int(np.searchsorted(values, upper, side="right"))   # values ≤ upper: [0, reach)
     low = values[:reach]
     positive = low > 0
+    floor = low >= lower
     logs = np.log(np.where(positive, low, 1.0))
     rows = []
     for _ in range(n_resamples):
@@ -88,15 +94,16 @@ def _by_value(sample: PooledSample, upper: float, min_count: int, n_resamples: i
         # copies with rank ≥ min_count: the first min_count − 1 draws lie below the window
         kept = np.clip(ranked - (min_count - 1), 0, copies) * positive
         starts = np.flatnonzero(kept)
-        lower = float(low[starts[0]]) if starts.size else float("nan")
-        rows.append(_sums(int(kept.sum()), float(kept @ logs), float(kept @ low), lower))
+        start = max(lower, float(low[starts[0]])) if starts.size else float("nan")
+        kept = kept * floor
+        rows.append(_sums(int(kept.sum()), float(kept @ logs), float(kept @ low), start))
     return rows
 
 
 def _by_packing(sample: PooledSample, upper: float, min_count: int, n_resamples: int,
-                rng: np.random.Generator) -> list[WindowSums]:
+                rng: np.random.Generator, lower: float) -> list[WindowSums]:
     values, groups, n_groups = sample.values, sample.groups, sample.n_groups
-    inside = (values > 0) & (values <= upper)
+    inside = (values > 0) & (values <= upper) & (values >= lower)
     count = np.bincount(groups[inside], minlength=n_groups)
     log_sum = np.bincount(groups[inside], weights=np.log(values[inside]), minlength=n_groups)
     x_sum = np.bincount(groups[inside], weights=values[inside], minlength=n_groups)
@@ -106,15 +113,16 @@ def _by_packing(sample: PooledSample, upper: float, min_count: int, n_resamples:
         copies = np.bincount(rng.integers(0, n_groups, n_groups), minlength=n_groups)
         pooled_heads = np.repeat(heads, copies, axis=0).ravel()
         smallest = np.sort(np.partition(pooled_heads, min_count - 1)[:min_count])
-        lower = float(smallest[-1])
-        if not lower > 0:          # fewer than min_count values, or zeros in the ranks
+        ranked_first = float(smallest[-1])
+        if not ranked_first > 0:    # fewer than min_count values, or zeros in the ranks
             rows.append(WindowSums(0, float("nan"), float("nan"), float("nan")))
             continue
-        below = smallest[:-1]
-        below = below[(below > 0) & (below <= upper)]  # in (0, upper] but ranked below
+        below = smallest[:-1]       # ranked below the window, though perhaps inside it
+        below = below[(below > 0) & (below <= upper) & (below >= lower)]
         rows.append(_sums(int(copies @ count) - below.size,
                           float(copies @ log_sum) - float(np.log(below).sum()),
-                          float(copies @ x_sum) - float(below.sum()), lower))
+                          float(copies @ x_sum) - float(below.sum()),
+                          max(lower, ranked_first)))
     return rows
 
 
