@@ -66,8 +66,9 @@ def test_cli_report_of_files_of_several_sizes(mixed_sizes, tmp_path):
         files.append(str(result.save(tmp_path / f"run_{k}.npz")))
     out = tmp_path / "report"
     run = CliRunner().invoke(cli, ["report", *files, "-o", str(out), "--correction",
-                                   "constant"])
+                                   "constant", "--gap-floor", "cutoff"])
     assert run.exit_code == 0, run.output
     summary = json.loads((out / "summary.json").read_text())
     assert list(summary["by_size"]) == ["96", "128"]
     assert {e["form"] for e in summary["extrapolated"].values()} == {"constant"}
+    assert summary["gap_floor"] == "cutoff"

@@ -58,9 +58,17 @@ from .common import Container, container_options, naming, output_options, with_c
     default=None,
     help="Fix omega of the correction x_inf + a N^-omega.",
 )
+@click.option(
+    "--gap-floor",
+    type=click.Choice(["rank", "cutoff"]),
+    default="rank",
+    show_default=True,
+    help="Packings of several sizes: start the gamma window of each size at the 10th smallest "
+    "gap (rank) or at that size's cut-off h_min(N), above the depletion of the smallest gaps.",
+)
 @container_options
 @output_options
-def report(results, output, model, rule, correction, omega, container, out):
+def report(results, output, model, rule, correction, omega, gap_floor, container, out):
     """Analyse jammed results (.npz/.h5 files, or folders of them such as an ensemble's) and
     write one pooled report to a folder.
 
@@ -75,7 +83,7 @@ def report(results, output, model, rule, correction, omega, container, out):
     files, loaded, skipped = read_results(results)
     loaded = [_with_container(result, container, path) for result, path in zip(loaded, files)]
     page = make_report(loaded, output, model=model, rule=rule, correction=correction,
-                       omega=omega)
+                       omega=omega, gap_floor=gap_floor)
     warnings = json.loads((page.parent / "summary.json").read_text()).get("warnings", [])
     record = {"command": "report", "results": [str(p) for p in files],
               "skipped": [str(p) for p in skipped], "report": str(page), "warnings": warnings}

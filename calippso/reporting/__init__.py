@@ -32,7 +32,7 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
            title: str | None = None, max_gap: float = DEFAULT_MAX_GAP, rule: str = "bucklers",
            model: str | dict[str, str] | None = None, n_bootstrap: int = 1000,
            seed: int = 0, max_history_figures: int | None = None, correction: str = "auto",
-           omega: float | None = None) -> Path:
+           omega: float | None = None, gap_floor: str = "rank") -> Path:
     """Analyse one jammed packing or pool an ensemble, and write the report into `out_dir`.
 
     Files written: ``summary.json`` (φ, z, rattlers, isostaticity, exponents with intervals,
@@ -75,6 +75,9 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
         (`calippso.analysis.extrapolation`).
     omega : float, optional
         Fix ω of the correction form "power".
+    gap_floor : {"rank", "cutoff"}
+        Packings of several sizes: where the γ window of each size starts
+        (`calippso.analysis.finite_size_analysis`).
 
     Returns
     -------
@@ -103,7 +106,8 @@ def report(results: JammingResult | Iterable[JammingResult], out_dir: str | os.P
         samples = {"gamma": analysis.gaps, "theta_e": analysis.forces["extended"],
                    "theta_l": analysis.forces["localized"], "theta": analysis.forces["all"]}
         sizes = finite_size_analysis(items, max_gap=max_gap, rule=rule, model=model,
-                                     form=correction, omega=omega, samples=samples,
+                                     form=correction, omega=omega, gap_floor=gap_floor,
+                                     samples=samples,
                                      n_bootstrap=n_bootstrap, seed=seed)
         figures["exponents_vs_n"] = plot_exponents_vs_n(sizes, out / "exponents_vs_n.png")
         figures["gaps_collapse"] = plot_gap_collapse(sizes, out / "gaps_collapse.png")
