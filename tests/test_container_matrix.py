@@ -1,8 +1,9 @@
 """Every public call in every container: `jam` (each route, each box), `jamming_category`
-(each class), `generators.relax`, `calippso report`, `calippso render`, and `write`/`read`
-in each format, for a periodic box, flat walls on one and on two axes and a cylinder, in
-d = 2 and 3. Each call returns an answer, checked here, or refuses in one line naming what
-is unsupported (`REFUSALS`); none raises a solver's or numpy's error."""
+(each class), `generators.relax` and `calippso.protocols.precompress`, `calippso report`,
+`calippso render`, and `write`/`read` in each format, for a periodic box, flat walls on one
+and on two axes and a cylinder, in d = 2 and 3. Each call returns an answer, checked here,
+or refuses in one line naming what is unsupported (`_refusal`); none raises a solver's or
+numpy's error."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from calippso import Boundaries, Packing
 from calippso.cli import main
 from calippso.errors import JammingError, SolverError
 from calippso.io import SUFFIXES, read_result
+from calippso.protocols import precompress
 
 #: Particles per packing: small, so that the whole matrix runs in seconds.
 N = 40
@@ -41,6 +43,8 @@ BALANCE = 1e-9
 WITNESS = 1e-8
 #: Relative distance between written and read positions, diameters and box.
 ROUND_TRIP = 1e-12
+#: The reduced pressure of the LS precompression (low: the start is near jamming already).
+PRECOMPRESS_PRESSURE = 1e3
 #: The errors a refusal may raise (one line each).
 REFUSAL_TYPES = (ValueError, JammingError, SolverError)
 
@@ -163,7 +167,7 @@ def assert_strict_witness(packing: Packing, category) -> None:
 
 
 # ------------------------------------------------------------------------------ the calls
-@pytest.mark.parametrize("route", ["lp", "relaxed"])
+@pytest.mark.parametrize("route", ["lp", "relaxed", "auto"])
 @pytest.mark.parametrize("box", ["fixed", "deformable"])
 @pytest.mark.parametrize("name, d", CASES)
 def test_jam_answers_by_every_route_and_box(name, d, route, box):
@@ -201,12 +205,15 @@ def test_jamming_category_answers_for_every_class(name, d, up_to):
 
 
 @pytest.mark.parametrize("name, d", CASES)
-def test_relax_answers(name, d):
+def test_relax_and_precompress_answer(name, d):
+    """The soft-sphere relaxation and the LS precompression keep the container, with no
+    overlap and no particle across a wall."""
     start = _loose(name, d)
-    relaxed = generators.relax(start).packing
-    assert relaxed.boundaries == start.boundaries and relaxed.n == start.n
-    pairs, walls = _gaps(relaxed)
-    assert pairs.min() >= -OVERLAP and walls.min(initial=0.0) >= -OVERLAP
+    for moved in (generators.relax(start).packing,
+                  precompress(start, PRECOMPRESS_PRESSURE).packing):
+        assert moved.boundaries == start.boundaries and moved.n == start.n
+        pairs, walls = _gaps(moved)
+        assert pairs.min() >= -OVERLAP and walls.min(initial=0.0) >= -OVERLAP
 
 
 @pytest.mark.parametrize("name, d", CASES)
