@@ -322,3 +322,37 @@ def test_network_first_stops_when_its_pivot_budget_is_spent(source, monkeypatch)
     by_lps = jam(start, network=network)
     assert by_lps.iterations >= 1
     assert_jammed(by_lps)
+
+
+def test_the_path_records_each_pivot_and_its_linear_algebra(source):
+    """Every swap carries its wall time and the forces still non-positive after it (none after
+    the last), and the path's tally counts at least one factorisation and solve per pivot."""
+    positions, diameters, box = in_mean_diameters(source.packing)
+    network = swapped_networks(source, 3, wanted=1)[0]
+    path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
+                                     source.rattlers)
+    assert path is not None and path.jammed, failure
+    assert all(swap.seconds > 0 for swap in path.swaps)
+    assert path.swaps[-1].non_positive == 0
+    assert sum(swap.seconds for swap in path.swaps) <= path.seconds
+    assert path.cost.factorizations >= 1 and path.cost.solves >= path.pivots
+    assert 0 < path.cost.factorize_seconds + path.cost.solve_seconds <= path.seconds
+    assert path.median_pivot_seconds > 0
+
+
+def test_a_path_stops_at_its_time_limit_where_it_got_to(source):
+    """A path out of pivots or out of time ends at the vertex it reached, not jammed, with
+    the reason; with its time spent before the first pivot, that vertex is the start."""
+    positions, diameters, box = in_mean_diameters(source.packing)
+    network = swapped_networks(source, 3, wanted=1)[0]
+    start = refine_isostatic(positions, diameters, box, network[:, 0], network[:, 1],
+                             ~source.rattlers)
+    path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
+                                     source.rattlers, refined=start, max_pivots=1)
+    assert path is not None and not path.jammed and path.pivots == 1
+    assert "1 pivots" in failure
+    stopped, why = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
+                                    source.rattlers, refined=start, time_limit=1e-9)
+    assert "s of pivots" in why
+    assert stopped is not None and not stopped.jammed and stopped.pivots == 0
+    assert stopped.refinement.diameters[0] >= start.diameters[0]

@@ -14,10 +14,14 @@ Two implementations behind one interface (`factorize`, then ``solve(b)`` and
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib.util
 import os
 import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
@@ -27,7 +31,8 @@ from scipy.sparse.linalg import splu
 
 from ..c_stdout import c_stdout_to_stderr
 
-__all__ = ["Factors", "factorize", "pardiso_available", "PARDISO_MIN_UNKNOWNS", "MKL_CBWR_AUTO"]
+__all__ = ["Factors", "factorize", "pardiso_available", "PARDISO_MIN_UNKNOWNS", "MKL_CBWR_AUTO",
+           "Tally", "tally"]
 
 #: PARDISO is used from this many unknowns on (when installed): from a d = 3, N = 1024
 #: network (~3000 unknowns) on it factorises faster than SuperLU, by more the larger the
@@ -45,6 +50,62 @@ class Factors(Protocol):
 
     def solve(self, rhs: np.ndarray, trans: str = "N") -> np.ndarray:
         """A⁻¹ rhs (``trans="N"``) or A⁻ᵀ rhs (``trans="T"``), shape (n,)."""
+
+
+@dataclass
+class Tally:
+    """Sparse LU work counted while a `tally` is open.
+
+    Attributes
+    ----------
+    factorizations : int
+        Matrices factorised (singular ones included).
+    factorize_seconds : float
+        Wall time of those factorisations.
+    solves : int
+        Solves with any factors made while the tally was open (each refinement step is one).
+    solve_seconds : float
+        Wall time of those solves.
+    """
+
+    factorizations: int = 0
+    factorize_seconds: float = 0.0
+    solves: int = 0
+    solve_seconds: float = 0.0
+
+
+#: The open tallies, innermost last (`tally`).
+_OPEN_TALLIES: list[Tally] = []
+
+
+@contextlib.contextmanager
+def tally() -> Iterator[Tally]:
+    """Count the factorisations and solves made inside the block, with their wall time.
+
+    Factors made inside the block report their solves to every tally open at the time of the
+    solve (nested tallies each see the work of their own blocks).
+    """
+    counted = Tally()
+    _OPEN_TALLIES.append(counted)
+    try:
+        yield counted
+    finally:
+        _OPEN_TALLIES.remove(counted)
+
+
+class _TalliedFactors:
+    """Factors whose solves are counted by the open tallies (`tally`)."""
+
+    def __init__(self, factors: Factors):
+        self._factors = factors
+
+    def solve(self, rhs: np.ndarray, trans: str = "N") -> np.ndarray:
+        began = time.perf_counter()
+        solution = self._factors.solve(rhs, trans)
+        for counted in _OPEN_TALLIES:
+            counted.solves += 1
+            counted.solve_seconds += time.perf_counter() - began
+        return solution
 
 
 def pardiso_available() -> bool:
@@ -92,6 +153,18 @@ def factorize(matrix: sp.spmatrix, method: str = "auto", strict: bool = True) ->
     """
     if method not in ("auto", "superlu", "pardiso"):
         raise ValueError(f"unknown factorisation {method!r}: choose auto, superlu or pardiso")
+    if not _OPEN_TALLIES:
+        return _factorize(matrix, method, strict)
+    began = time.perf_counter()
+    factors = _factorize(matrix, method, strict)
+    for counted in _OPEN_TALLIES:
+        counted.factorizations += 1
+        counted.factorize_seconds += time.perf_counter() - began
+    return None if factors is None else _TalliedFactors(factors)
+
+
+def _factorize(matrix: sp.spmatrix, method: str, strict: bool) -> Factors | None:
+    """`factorize` without the tally."""
     use_pardiso = method == "pardiso" or (
         method == "auto" and matrix.shape[0] >= PARDISO_MIN_UNKNOWNS and pardiso_available())
     if use_pardiso:

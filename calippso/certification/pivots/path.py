@@ -16,7 +16,7 @@ from ..newton import (MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, network_jacobi
                       refine_isostatic)
 from ...geometry.packing import minimum_image
 from ...geometry.rattlers import remove_rattlers
-from ..sparse_lu import Factors, factorize
+from ..sparse_lu import Factors, factorize, tally
 from .geometry import (CAGE_GAP, NEAR_GAP, RATIO_CANDIDATES, closing_rates, find_closing_pairs,
                        outside_pairs, rattlers_out_of_the_way, refined_solve)
 from .vertex import DEGENERATE_STEP, Basis, PivotPath, Swap, Vertex
@@ -44,8 +44,8 @@ LEAVING_TRIES = 5
 
 def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                      i: np.ndarray, j: np.ndarray, rattlers: np.ndarray,
-                     refined: Refinement | None = None,
-                     max_pivots: int = MAX_PIVOTS) -> tuple[PivotPath | None, str]:
+                     refined: Refinement | None = None, max_pivots: int = MAX_PIVOTS,
+                     time_limit: float | None = None) -> tuple[PivotPath | None, str]:
     """Pivot from an isostatic network to the jamming point (module doc).
 
     Parameters
@@ -62,16 +62,29 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         it Newton solves the network.
     max_pivots : int
         Pivots taken at most.
+    time_limit : float, optional
+        Seconds the path may take: no pivot starts after them (the one under way ends).
 
     Returns
     -------
     (PivotPath or None, str)
         The path's end, with positive forces and no overlap (`PivotPath.jammed`), and "";
         or where it stopped and why: the network became singular, a floppy mode closes no
-        pair near contact, a rattler's cage closed, or `max_pivots` were taken (a
-        `PivotPath` with ``jammed=False`` once a pivot was made, None when the start itself
-        is refused: another pair overlaps there, or Newton cannot solve its network).
+        pair near contact, a rattler's cage closed, the path returned to a network it had
+        left, `max_pivots` were taken or `time_limit` passed (a `PivotPath` with
+        ``jammed=False`` once a pivot was made, None when the start itself is refused:
+        another pair overlaps there, or Newton cannot solve its network).
     """
+    with tally() as cost:
+        path, failure = _follow(positions, diameters, box, i, j, rattlers, refined,
+                                max_pivots, time_limit)
+    return (None if path is None else replace(path, cost=cost)), failure
+
+
+def _follow(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np.ndarray,
+            j: np.ndarray, rattlers: np.ndarray, refined: Refinement | None, max_pivots: int,
+            time_limit: float | None) -> tuple[PivotPath | None, str]:
+    """`pivot_to_jamming` without its tally."""
     began = time.perf_counter()
     i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)
     stable = ~np.asarray(rattlers, dtype=bool)
@@ -108,6 +121,9 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
             return ended(True), ""
         if len(swaps) >= max_pivots:
             return ended(False), f"no jamming point within {max_pivots} pivots"
+        if time_limit is not None and time.perf_counter() - began > time_limit:
+            return ended(False), f"no jamming point within {time_limit:g} s of pivots"
+        pivot_began = time.perf_counter()
         for released in _leaving_contacts(vertex, bland=degenerate)[:LEAVING_TRIES]:
             step, failure = _pivot(search, vertex, int(released))
             if step is None and failure == CAGE_CLOSED:
@@ -126,7 +142,10 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         if digest in seen:
             return ended(False), "the path returned to a network it had left (cycling)"
         seen.add(digest)
-        swaps.append(swap)
+        forces = next_vertex.refinement.forces
+        swaps.append(replace(swap, seconds=time.perf_counter() - pivot_began,
+                             non_positive=int(np.count_nonzero(
+                                 forces <= MIN_FORCE_RATIO * float(forces.max())))))
         vertex = next_vertex
 
 

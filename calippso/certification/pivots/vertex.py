@@ -8,14 +8,14 @@ clause of a run's notes.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import lu_factor, lu_solve
 
 from ..newton import Refinement
-from ..sparse_lu import Factors
+from ..sparse_lu import Factors, Tally
 
 __all__ = ["Swap", "PivotPath", "Vertex", "Basis", "describe_path", "DEGENERATE_STEP",
            "MAX_ROW_SWAPS", "MAX_SMALL_CONDITION", "LISTED_SWAPS"]
@@ -49,6 +49,10 @@ class Swap:
     rejoined : int
         Rattlers whose cage closed along the floppy mode (they join the network with d + 1
         contacts; `closed` is the first of them).
+    non_positive : int
+        Contacts whose force is still not positive at the vertex this pivot reached.
+    seconds : float
+        Wall time of this pivot (the releases tried, the ratio test and Newton).
     """
 
     released: tuple[int, int]
@@ -56,6 +60,8 @@ class Swap:
     growth: float
     new_rattlers: int
     rejoined: int = 0
+    non_positive: int = 0
+    seconds: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,6 +86,8 @@ class PivotPath:
     jammed : bool
         Every force is positive: the path reached a jamming point. False: the path stopped
         (why is returned beside it) at this vertex, no lower in Γ than its start.
+    cost : Tally
+        The sparse LU work of the path: factorisations and solves, with their wall time.
     """
 
     i: np.ndarray
@@ -90,6 +98,7 @@ class PivotPath:
     factorizations: int
     seconds: float
     jammed: bool = True
+    cost: Tally = field(default_factory=Tally)
 
     @property
     def pivots(self) -> int:
@@ -100,6 +109,11 @@ class PivotPath:
     def degenerate(self) -> int:
         """Pivots that gained no inflation."""
         return sum(swap.growth <= DEGENERATE_STEP for swap in self.swaps)
+
+    @property
+    def median_pivot_seconds(self) -> float:
+        """The median wall time of one pivot (nan without pivots)."""
+        return float(np.median([swap.seconds for swap in self.swaps])) if self.swaps else np.nan
 
     @property
     def largest_growth(self) -> float:
@@ -182,14 +196,20 @@ class Basis:
 
 
 def describe_path(path: PivotPath) -> str:
-    """One clause on a path for the run's notes: pivots, time, contacts swapped, largest
-    growth of one pivot."""
+    """One clause on a path for the run's notes: pivots, time and its sparse LU share,
+    contacts swapped, the forces left non-positive along the way, largest growth of one
+    pivot."""
     listed = ", ".join(f"{swap.released}->{swap.closed}" for swap in path.swaps[:LISTED_SWAPS])
     more = f" and {path.pivots - LISTED_SWAPS} more" if path.pivots > LISTED_SWAPS else ""
     degenerate = f" ({path.degenerate} degenerate)" if path.degenerate else ""
     if not path.pivots:
         return f"no contact pivot was needed ({path.seconds:.2f} s)"
+    cost = path.cost
+    trail = [swap.non_positive for swap in path.swaps]
     return (f"{path.pivots} contact pivot(s){degenerate} in {path.seconds:.2f} s "
+            f"({cost.factorizations} sparse LU factorisation(s), {cost.factorize_seconds:.2f} s; "
+            f"{cost.solves} solves, {cost.solve_seconds:.2f} s) "
             f"repaired the network's non-positive forces (released->closed: "
-            f"{listed}{more}; largest growth of one pivot sqrt(Gamma)-1 = "
+            f"{listed}{more}; non-positive forces after each pivot: at most {max(trail)}, "
+            f"{trail[-1]} at the end; largest growth of one pivot sqrt(Gamma)-1 = "
             f"{path.largest_growth:.1e})")

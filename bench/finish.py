@@ -1,0 +1,170 @@
+"""What the finish needs: the contact-pivot path with no pivot budget, from the networks that
+`jam` hands to it. Prints one table row per input and start (and writes JSON).
+
+Each input is a soft-sphere quench in d = 3 (`generators.soft_quench`, kept in --cache). Two
+starts are read from it, as `jam` reads them:
+
+- ``network-first``: the first network whose jamming point network first's rounds hand to
+  the contact pivots (`calippso.certification.network_first.settle_candidate`, the hint's
+  candidate);
+- ``interior-lp``: the network of the first LP without crossover (`jam(...,
+  crossover="off", network_first="off")`), at its Newton point.
+
+From each, `calippso.certification.pivots.pivot_to_jamming` runs with no pivot budget, for at
+most --time-limit seconds. Run from the repository root (2 cores, the ``large`` extra):
+
+    python bench/finish.py --inputs 8192:1e-7:2 16384:1e-7:2 --cache DIR --json finish.json
+
+Columns: N, seed, quench pressure, start, non-positive forces at the start, pivots
+(degenerate), how the path ended, its seconds, the median seconds of one pivot, sparse LU
+factorisations and their seconds, solves and their seconds, the rest (geometry: neighbour
+searches, ratio tests, rattlers), and the non-positive forces left at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+import calippso
+from calippso.certification import network_first
+from calippso.certification.network_guess import candidate_networks, check_network_hint
+from calippso.certification.newton import MIN_FORCE_RATIO
+from calippso.certification.pivots import pivot_to_jamming
+from calippso.geometry.neighbors import NeighborSearch
+from calippso.stages import newton_stage
+
+#: Pivots allowed to a path: no budget but the time limit.
+UNLIMITED = 10**9
+STARTS = ("network-first", "interior-lp")
+
+
+class _Captured(Exception):
+    """Raised by the stand-in for `pivot_to_jamming` once it holds the path's start."""
+
+    def __init__(self, arguments: tuple, refined):
+        super().__init__("start captured")
+        self.arguments, self.refined = arguments, refined
+
+
+def _capture(positions, diameters, box, i, j, rattlers, refined=None, **budget):
+    raise _Captured((positions, diameters, box, i, j, rattlers), refined)
+
+
+def quench(n: int, pressure: float, seed: int, cache: Path) -> tuple[calippso.Packing,
+                                                                      np.ndarray]:
+    """The d = 3 quench of N particles to `pressure`, and its overlap network, from `cache`
+    when there."""
+    path = cache / f"quench_d3_n{n}_p{pressure:g}_seed{seed}.npz"
+    if not path.exists():
+        import generators
+
+        made = generators.soft_quench(generators.diameters.monodisperse(n), 3, seed=seed,
+                                      target_pressure=pressure)
+        cache.mkdir(parents=True, exist_ok=True)
+        np.savez(path, positions=made.packing.positions, diameters=made.packing.diameters,
+                 box=made.packing.box, contacts=made.contacts)
+    with np.load(path) as stored:
+        return calippso.read(path), stored["contacts"]
+
+
+def read_start(packing: calippso.Packing, hint: np.ndarray, start: str):
+    """The path's start (positions, diameters, box, i, j, rattlers) and its Newton solution,
+    in mean diameters; (None, why) when `jam` hands no network to the pivots."""
+    target = network_first if start == "network-first" else newton_stage
+    saved = target.pivot_to_jamming
+    target.pivot_to_jamming = _capture
+    try:
+        if start == "network-first":
+            scale = packing.mean_diameter
+            search = NeighborSearch(packing.positions / scale, packing.diameters / scale,
+                                    packing.box / scale)
+            candidate = candidate_networks(search, packing.d,
+                                           check_network_hint(hint, packing.n))[0]
+            settled, failure, _ = network_first.settle_candidate(search, candidate, packing.d)
+            return None, ("settled by the rounds with no pivot" if settled is not None
+                          else f"no network reached the pivots: {failure}")
+        result = calippso.jam(packing, crossover="off", network_first="off",
+                              max_iters=1)
+        return None, f"no pivots after LP 1 ({result.stop_reason})"
+    except _Captured as captured:
+        return captured, ""
+    finally:
+        target.pivot_to_jamming = saved
+
+
+def run(n: int, pressure: float, seed: int, start: str, cache: Path,
+        time_limit: float) -> dict:
+    packing, hint = quench(n, pressure, seed, cache)
+    row = {"n": n, "pressure": pressure, "seed": seed, "start": start}
+    clock = time.perf_counter()
+    captured, why = read_start(packing, hint, start)
+    row["reading_seconds"] = time.perf_counter() - clock
+    if captured is None:
+        row["ended"] = why
+        return row
+    forces = captured.refined.forces
+    row["non_positive_start"] = int(np.count_nonzero(forces <= MIN_FORCE_RATIO * forces.max()))
+    clock = time.perf_counter()
+    path, failure = pivot_to_jamming(*captured.arguments, refined=captured.refined,
+                                     max_pivots=UNLIMITED, time_limit=time_limit)
+    row["seconds"] = time.perf_counter() - clock
+    row["ended"] = failure or "jammed"
+    if path is None:
+        return row
+    end_forces = path.refinement.forces
+    row.update(pivots=path.pivots, degenerate=path.degenerate,
+               rejoined=sum(swap.rejoined for swap in path.swaps),
+               new_rattlers=sum(swap.new_rattlers for swap in path.swaps),
+               median_pivot_seconds=path.median_pivot_seconds,
+               factorizations=path.cost.factorizations,
+               factorize_seconds=path.cost.factorize_seconds, solves=path.cost.solves,
+               solve_seconds=path.cost.solve_seconds,
+               non_positive_trail=[swap.non_positive for swap in path.swaps],
+               non_positive_end=int(np.count_nonzero(
+                   end_forces <= MIN_FORCE_RATIO * end_forces.max())))
+    return row
+
+
+def line(row: dict) -> str:
+    head = f"{row['n']:6d} {row['seed']:4d} {row['pressure']:7.0e} {row['start']:>13}"
+    if "pivots" not in row:
+        return f"{head} {row.get('non_positive_start', '-'):>6}  {row['ended']}"
+    rest = row["seconds"] - row["factorize_seconds"] - row["solve_seconds"]
+    return (f"{head} {row['non_positive_start']:6d} {row['pivots']:5d} ({row['degenerate']:3d}) "
+            f"{row['ended'][:28]:>28} {row['seconds']:8.1f} {row['median_pivot_seconds']:7.2f} "
+            f"{row['factorizations']:4d} {row['factorize_seconds']:7.1f} {row['solves']:6d} "
+            f"{row['solve_seconds']:7.1f} {rest:7.1f} {row['non_positive_end']:5d}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--inputs", nargs="+", default=["8192:1e-7:2"],
+                        help="quenches as N:pressure:seed")
+    parser.add_argument("--starts", nargs="+", choices=STARTS, default=list(STARTS))
+    parser.add_argument("--time-limit", type=float, default=1800.0,
+                        help="seconds each path may take")
+    parser.add_argument("--cache", type=Path, default=Path("bench/.finish-inputs"),
+                        help="folder for the quenches")
+    parser.add_argument("--json", type=Path, default=None)
+    args = parser.parse_args()
+    print(f"{'N':>6} {'seed':>4} {'p':>7} {'start':>13} {'neg':>6} {'pivots (deg)':>12} "
+          f"{'ended':>28} {'path s':>8} {'s/pivot':>7} {'LUs':>4} {'LU s':>7} {'solves':>6} "
+          f"{'solve s':>7} {'other s':>7} {'neg end':>5}")
+    rows = []
+    for spec in args.inputs:
+        n, pressure, seed = spec.split(":")
+        for start in args.starts:
+            row = run(int(n), float(pressure), int(seed), start, args.cache, args.time_limit)
+            rows.append(row)
+            print(line(row), flush=True)
+            if args.json:
+                args.json.write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()
