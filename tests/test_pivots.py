@@ -356,3 +356,35 @@ def test_a_path_stops_at_its_time_limit_where_it_got_to(source):
     assert "s of pivots" in why
     assert stopped is not None and not stopped.jammed and stopped.pivots == 0
     assert stopped.refinement.diameters[0] >= start.diameters[0]
+
+
+def test_one_factorisation_serves_the_pivots_that_follow(source):
+    """The floppy mode is read from the vertex's own Jacobian (J u = e_c), whose factors
+    serve the next pivots with their swapped rows: a path of several pivots makes fewer
+    factorisations than pivots, and ends at the same jamming point as with new factors at
+    every pivot (`MAX_ROW_SWAPS` = 0)."""
+    from calippso.certification.pivots import vertex
+
+    positions, diameters, box = in_mean_diameters(source.packing)
+    for network in swapped_networks(source, 3, wanted=2):
+        start = refine_isostatic(positions, diameters, box, network[:, 0], network[:, 1],
+                                 ~source.rattlers)
+        path, failure = pivot_to_jamming(positions, diameters, box, network[:, 0],
+                                         network[:, 1], source.rattlers, refined=start)
+        assert path is not None and path.jammed, failure
+        if path.pivots >= 3:
+            break
+    assert path.pivots >= 3
+    assert path.cost.factorizations < path.pivots
+    saved = vertex.MAX_ROW_SWAPS
+    vertex.MAX_ROW_SWAPS = 0
+    try:
+        fresh, _ = pivot_to_jamming(positions, diameters, box, network[:, 0], network[:, 1],
+                                    source.rattlers, refined=start)
+    finally:
+        vertex.MAX_ROW_SWAPS = saved
+    assert fresh.cost.factorizations > path.cost.factorizations
+    assert same_network(np.column_stack([path.i, path.j]),
+                        np.column_stack([fresh.i, fresh.j]))
+    np.testing.assert_allclose(path.refinement.diameters, fresh.refinement.diameters,
+                               rtol=SAME_PHI)

@@ -71,3 +71,30 @@ def test_pardiso_runs_in_mkl_reproducible_mode_and_repeats_bit_for_bit(monkeypat
                            check=True).stdout.split() for _ in range(2)]
     assert int(runs[0][0]) == sparse_lu.MKL_CBWR_AUTO
     assert runs[0] == runs[1]
+
+
+def test_factors_solve_without_factorising_again():
+    """Each PARDISO factorisation has a handle of its own: solving with older factors after
+    another factorisation is a solve (phase 33), not a new factorisation (phase 13)."""
+    if not pardiso_available():
+        pytest.skip("pypardiso (the pardiso extra) is not installed")
+    first, second = nonsymmetric(300, seed=3), nonsymmetric(300, seed=4)
+    old = factorize(first, "pardiso")
+    factorize(second, "pardiso")
+    for trans in ("N", "T"):
+        old.solve(np.ones(300), trans=trans)
+        assert old._solver.phase == 33
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_tally_counts_factorisations_and_solves(method):
+    matrix = nonsymmetric(200, seed=5)
+    with sparse_lu.tally() as outer:
+        factors = factorize(matrix, method)
+        with sparse_lu.tally() as inner:
+            factors.solve(np.ones(200))
+            factors.solve(np.ones(200), trans="T")
+    factors.solve(np.ones(200))   # after both closed: not counted
+    assert (outer.factorizations, outer.solves) == (1, 2)
+    assert (inner.factorizations, inner.solves) == (0, 2)
+    assert outer.factorize_seconds > 0 and outer.solve_seconds >= inner.solve_seconds > 0

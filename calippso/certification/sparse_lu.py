@@ -20,6 +20,7 @@ import importlib.util
 import os
 import sys
 import time
+import weakref
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -102,9 +103,10 @@ class _TalliedFactors:
     def solve(self, rhs: np.ndarray, trans: str = "N") -> np.ndarray:
         began = time.perf_counter()
         solution = self._factors.solve(rhs, trans)
+        elapsed = time.perf_counter() - began
         for counted in _OPEN_TALLIES:
             counted.solves += 1
-            counted.solve_seconds += time.perf_counter() - began
+            counted.solve_seconds += elapsed
         return solution
 
 
@@ -115,8 +117,8 @@ def pardiso_available() -> bool:
 
 @functools.lru_cache(maxsize=1)
 def _pardiso_solver():
-    """The one PARDISO solver of this process (pypardiso advises against several), in MKL's
-    reproducible mode (`MKL_CBWR_AUTO`).
+    """The first PARDISO solver of this process; making it sets up MKL once: the runtime's
+    path, and MKL's reproducible mode (`MKL_CBWR_AUTO`).
 
     pypardiso looks for the MKL runtime by a recursive search of the whole Python prefix,
     which takes seconds in a large environment; where pip puts it (the prefix's `lib`, or
@@ -134,6 +136,15 @@ def _pardiso_solver():
     if "MKL_CBWR" not in os.environ:   # set before MKL computes anything
         solver.libmkl.MKL_CBWR_Set(MKL_CBWR_AUTO)
     return solver
+
+
+def _new_pardiso_solver():
+    """A PARDISO solver with a handle of its own (its own factors), MKL set up as
+    `_pardiso_solver` does."""
+    import pypardiso
+
+    _pardiso_solver()
+    return pypardiso.PyPardisoSolver(mtype=11)
 
 
 def factorize(matrix: sp.spmatrix, method: str = "auto", strict: bool = True) -> Factors | None:
@@ -157,9 +168,10 @@ def factorize(matrix: sp.spmatrix, method: str = "auto", strict: bool = True) ->
         return _factorize(matrix, method, strict)
     began = time.perf_counter()
     factors = _factorize(matrix, method, strict)
+    elapsed = time.perf_counter() - began
     for counted in _OPEN_TALLIES:
         counted.factorizations += 1
-        counted.factorize_seconds += time.perf_counter() - began
+        counted.factorize_seconds += elapsed
     return None if factors is None else _TalliedFactors(factors)
 
 
@@ -180,10 +192,10 @@ class _PardisoFactors:
     """MKL PARDISO factors of a real nonsymmetric matrix (`pypardiso`).
 
     The matrix is held in CSR form; a CSC matrix on the same three arrays is its transpose,
-    which pypardiso solves with the stored factors (PARDISO's transposed solve). The process
-    has one solver: it keeps the factors of the latest matrix, and a solve with older factors
-    (whose matrix pypardiso compares with the stored one) factorises that matrix again, which
-    is slower but never wrong.
+    which pypardiso solves with the stored factors (PARDISO's transposed solve). Each set of
+    factors has a PARDISO handle of its own, released with it: factors kept for later
+    solves (the bases of `calippso.certification.pivots`) stay valid while other matrices
+    are factorised.
     """
 
     #: PARDISO's output parameter (1-based) counting perturbed pivots. PARDISO pivots
@@ -195,6 +207,8 @@ class _PardisoFactors:
 
     def __init__(self, solver, matrix: sp.csr_matrix):
         self._solver = solver
+        # PARDISO's memory of this handle goes with the factors (the process's end frees it)
+        weakref.finalize(self, solver.free_memory, True).atexit = False
         self._matrix = matrix
         self._transposed = sp.csc_matrix((matrix.data, matrix.indices, matrix.indptr),
                                          shape=matrix.shape)
@@ -205,12 +219,11 @@ class _PardisoFactors:
         csr.sort_indices()
         if not np.diff(csr.indptr).all() or not np.diff(csr.tocsc().indptr).all():
             return None   # an empty row or column: singular (and PARDISO would crash)
-        solver = _pardiso_solver()
+        solver = _new_pardiso_solver()
         solver.factorize(csr)
         factors = cls(solver, csr)
         if strict and solver.get_iparm(cls.PERTURBED_PIVOTS) > 0 and not factors._accurate():
-            solver.free_memory(everything=True)
-            return None
+            return None   # its handle is released with it
         return factors
 
     def _accurate(self) -> bool:

@@ -40,6 +40,10 @@ SINGULAR_RELEASE = "the network without the released contact is singular"
 #: gives no pivot: its released network is singular (a floppy cluster held by a redundant
 #: contact), or its floppy mode closes no pair. Any of them may leave: Γ grows along each.
 LEAVING_TRIES = 5
+#: The release opens a floppy mode along which Γ grows only when the Γ component of
+#: J⁻¹ e_c (minus the released force) is above this, relative to the largest component:
+#: below, it is round-off of a zero (a redundant contact, a singular released network).
+SINGULAR_GROWTH = 1e-13
 
 
 def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -174,8 +178,8 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
     else:
         ratt, kept = remove_rattlers(n, d, vertex.i[keep], vertex.j[keep])
         i_a, j_a, stable = vertex.i[keep][kept], vertex.j[keep][kept], ~ratt
-    if np.array_equal(stable, vertex.stable):
-        # same unknowns: the row of the released contact is swapped in place
+    in_place = np.array_equal(stable, vertex.stable)
+    if in_place:   # same unknowns: the row of the released contact is swapped in place
         rows_i, rows_j, swap_row = vertex.i, vertex.j, released
         basis, swapped = vertex.basis, vertex.swapped
     else:   # rattlers left with their contacts: new unknowns, the swapped row last
@@ -183,13 +187,13 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
         basis, swapped = None, ()
     if basis is not None and not basis.fits(stable):
         basis, swapped = None, ()
-    mode = _floppy_mode(search, rows_i, rows_j, stable, swap_row, basis, swapped)
+    mode = _floppy_mode(search, rows_i, rows_j, stable, swap_row, basis, swapped, in_place)
     if mode is None:
         return None, SINGULAR_RELEASE
     direction, made = mode
     solves = 0
-    if made is not None:   # K was factorised: the basis of this pivot and the next ones
-        basis, swapped, solves = Basis(*made, stable), (), 1
+    if made is not None:   # new factors: the basis of this pivot (and the next ones)
+        basis, swapped, solves = made, (), 1
     c_i, c_j = int(vertex.i[released]), int(vertex.j[released])
     if stable[c_i] and stable[c_j]:
         c_pair = search.pairs_of(np.array([c_i]), np.array([c_j]))
@@ -238,8 +242,10 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
         refined = separated
         if refined.factorization is not None:
             next_basis, next_swaps = Basis(*refined.factorization, stable), ()
-        else:
+        elif basis is not None and basis.gamma_row is None:
             next_basis, next_swaps = basis, next_swapped
+        else:   # the factors of K serve this pivot only: the next starts from a Jacobian
+            next_basis, next_swaps = None, ()
         if not np.array_equal(now_stable, stable):   # the rows of the new rattlers left
             next_basis, next_swaps = None, ()
         candidate = Vertex(i_new, j_new, now_stable, refined, next_basis, next_swaps)
@@ -309,54 +315,86 @@ def _rejoin_caged(moved: NeighborSearch, vertex: Vertex, i_a: np.ndarray, j_a: n
 
 
 def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: np.ndarray,
-                 gamma_row: int, basis: Basis | None,
-                 swapped: tuple[int, ...]
-                 ) -> tuple[np.ndarray, tuple[Factors, sp.csr_matrix] | None] | None:
+                 gamma_row: int, basis: Basis | None, swapped: tuple[int, ...],
+                 released_in_place: bool) -> tuple[np.ndarray, Basis | None] | None:
     """The floppy mode of a network with one contact fewer than unknowns, per particle.
 
-    Solves K t = e_Γ, where K is the Jacobian of the pairs (i, j) with the row `gamma_row`
-    replaced by the row of Γ (appended when `gamma_row` is the number of pairs): t is the
-    null vector of the other rows with dΓ = 1.
+    The mode t is the null vector of the network's rows other than `gamma_row`, normalised
+    to dΓ = 1. When `released_in_place` (row `gamma_row` is the released pair of the vertex,
+    and the release keeps the unknowns), t is read from the vertex's own Jacobian J: the solution u of J u = e_c vanishes on every
+    other row, so t = u / u_Γ, where u_Γ is minus the released force. J is as well
+    conditioned as the network, so factors from an earlier vertex serve it (with the rows
+    swapped since, `swapped`, and refinement for the motion). Otherwise (the release left
+    rattlers and changed the unknowns; row `gamma_row` is a placeholder) K t = e_Γ is
+    solved, with K the Jacobian with Γ's row in place of row `gamma_row`; K is as
+    ill-conditioned as the released force is weak, so it is factorised at the vertex
+    itself.
 
     Parameters
     ----------
     basis : Basis or None
-        Factors to solve with, where K differs from the basis in rows `swapped` and
-        `gamma_row`; None: K is factorised.
+        Factors to solve with, where J differs from the basis in rows `swapped`; None, or
+        factors that do not reach round-off: a new basis is made.
 
     Returns
     -------
-    (ndarray, shape (N, d), (Factors, matrix) or None) or None
+    (ndarray, shape (N, d), Basis or None) or None
         The displacement of every particle per unit of Γ (zero for the pinned particle and
-        the rattlers), and K with its new factors when the basis could not serve; None when
-        K is singular (Γ cannot grow along the floppy modes).
+        the rattlers), and the new basis when one was made (the factors of J, or of K when
+        the unknowns changed). None when Γ cannot grow along the floppy mode (K is singular).
     """
     n, d = search.positions.shape
     pairs = search.pairs_of(i, j)
     jacobian = network_jacobian(pairs.vectors, pairs.sigma, i, j, stable)
     n_unknowns = jacobian.shape[1]
-    rows = [jacobian[:gamma_row],
-            sp.csr_matrix(([1.0], ([0], [n_unknowns - 1])), shape=(1, n_unknowns)),
-            jacobian[gamma_row + 1:]]
-    matrix = sp.vstack(rows).tocsr()
-    if matrix.shape[0] != n_unknowns:
-        return None
-    target = np.zeros(n_unknowns)
-    target[gamma_row] = 1.0
-    factors = None if basis is None else basis.factors_for(matrix, tuple(sorted(
-        set(swapped) | {gamma_row})))
-    solution = None if factors is None else refined_solve(matrix, factors, target)
     made = None
-    if solution is None:   # no factors, or too far from K: factorise K itself
-        factors = factorize(matrix.tocsc(), strict=False)
-        solution = None if factors is None else refined_solve(matrix, factors, target)
-        made = (factors, matrix)
-    if solution is None:
+    if jacobian.shape[0] != n_unknowns:
         return None
+    if released_in_place:   # the vertex's own Jacobian
+        released = np.zeros(n_unknowns)
+        released[gamma_row] = 1.0
+        opening = _solve_swapped(basis, jacobian, swapped, released)
+        if opening is None:
+            made = _basis_of(jacobian, stable)
+            opening = _solve_swapped(made, jacobian, (), released)
+        if opening is None:
+            return None
+        growth = opening[-1]
+        if not abs(growth) > SINGULAR_GROWTH * np.abs(opening).max():
+            return None
+        solution = opening / growth
+    else:   # K: the network's rows and Γ's
+        matrix = sp.vstack([jacobian[:gamma_row],
+                            sp.csr_matrix(([1.0], ([0], [n_unknowns - 1])),
+                                          shape=(1, n_unknowns)),
+                            jacobian[gamma_row + 1:]]).tocsr()
+        target = np.zeros(n_unknowns)
+        target[gamma_row] = 1.0
+        made = _basis_of(matrix, stable, gamma_row)
+        solution = _solve_swapped(made, matrix, (), target)
+        if solution is None:
+            return None
     members = np.flatnonzero(stable)
     mode = np.zeros((n, d))
     mode[members[1:]] = solution[:-1].reshape(-1, d)
     return mode, made
+
+
+def _basis_of(matrix: sp.csr_matrix, stable: np.ndarray,
+              gamma_row: int | None = None) -> Basis | None:
+    """A basis of new factors of `matrix`, or None when it is singular."""
+    factors = factorize(matrix.tocsc(), strict=False)
+    return None if factors is None else Basis(factors, matrix, stable, gamma_row)
+
+
+def _solve_swapped(basis: Basis | None, matrix: sp.csr_matrix, rows: tuple[int, ...],
+                   rhs: np.ndarray) -> np.ndarray | None:
+    """matrix⁻¹ rhs from a basis that differs from it in `rows` (and by motion elsewhere),
+    refined to a normwise backward error of round-off against it (the floppy mode is a
+    direction: Newton's corrector makes the vertex it leads to exact); None when there is
+    no basis or it does not serve."""
+    factors = None if basis is None else basis.factors_for(matrix, rows)
+    return None if factors is None else refined_solve(matrix, factors, rhs, normwise=True)
 
 
 def _leaving_contacts(vertex: Vertex, bland: bool) -> np.ndarray:

@@ -161,12 +161,21 @@ class _SwappedFactors:
 class Basis:
     """One sparse LU of a network's Jacobian (unknowns of the stable set `stable`), reused by
     the pivots that follow: a pivot swaps one row, and `factors_for` solves with the swapped
-    matrix by the Woodbury identity (`_SwappedFactors`). The columns B⁻¹ e_r are kept."""
+    matrix by the Woodbury identity (`_SwappedFactors`). The columns B⁻¹ e_r are kept.
 
-    def __init__(self, factors: Factors, matrix: sp.spmatrix, stable: np.ndarray):
+    The basis of a path is the Jacobian of one of its vertices: the floppy mode's matrix K
+    (a row of the Jacobian replaced by Γ's) and the next vertices' Jacobians are swapped rows
+    of it, and the motion between vertices is left to the refinement of each solve. A basis
+    of K itself (`gamma_row`, when a release changed the unknowns) serves its own pivot
+    only: K is ill-conditioned where the released force is weak, and so would be every
+    update of it."""
+
+    def __init__(self, factors: Factors, matrix: sp.spmatrix, stable: np.ndarray,
+                 gamma_row: int | None = None):
         self.factors = factors
         self.matrix = sp.csr_matrix(matrix)
         self.stable = stable
+        self.gamma_row = gamma_row
         self._columns: dict[int, np.ndarray] = {}
 
     def fits(self, stable: np.ndarray) -> bool:
@@ -190,7 +199,12 @@ class Basis:
         columns = np.column_stack([self._columns[row] for row in rows])
         changes = sp.csr_matrix(matrix)[index] - self.matrix[index]
         small = np.eye(index.size) + changes @ columns
-        if not np.all(np.isfinite(small)) or np.linalg.cond(small) > MAX_SMALL_CONDITION:
+        if not np.all(np.isfinite(small)):
+            return None
+        # conditioned after scaling its rows (a row swapped for Γ's scales as the force
+        # released, which is no loss of accuracy)
+        scale = np.abs(small).max(axis=1, keepdims=True)
+        if not np.all(scale > 0) or np.linalg.cond(small / scale) > MAX_SMALL_CONDITION:
             return None
         return _SwappedFactors(self.factors, columns, sp.csr_matrix(changes), lu_factor(small))
 
