@@ -83,7 +83,7 @@ def test_factors_solve_without_factorising_again():
     factorize(second, "pardiso")
     for trans in ("N", "T"):
         old.solve(np.ones(300), trans=trans)
-        assert old._solver.phase == 33
+        assert old._factors._solver.phase == 33
 
 
 @pytest.mark.parametrize("method", METHODS)

@@ -64,7 +64,7 @@ class Tally:
     factorize_seconds : float
         Wall time of those factorisations.
     solves : int
-        Solves with any factors made while the tally was open (each refinement step is one).
+        Solves with any factors (each refinement step is one).
     solve_seconds : float
         Wall time of those solves.
     """
@@ -83,8 +83,8 @@ _OPEN_TALLIES: list[Tally] = []
 def tally() -> Iterator[Tally]:
     """Count the factorisations and solves made inside the block, with their wall time.
 
-    Factors made inside the block report their solves to every tally open at the time of the
-    solve (nested tallies each see the work of their own blocks).
+    Every solve inside the block counts, whenever its factors were made (nested tallies
+    each see the work of their own blocks).
     """
     counted = Tally()
     _OPEN_TALLIES.append(counted)
@@ -95,7 +95,7 @@ def tally() -> Iterator[Tally]:
 
 
 class _TalliedFactors:
-    """Factors whose solves are counted by the open tallies (`tally`)."""
+    """Factors whose solves are counted by the tallies open at the time (`tally`)."""
 
     def __init__(self, factors: Factors):
         self._factors = factors
@@ -164,8 +164,6 @@ def factorize(matrix: sp.spmatrix, method: str = "auto", strict: bool = True) ->
     """
     if method not in ("auto", "superlu", "pardiso"):
         raise ValueError(f"unknown factorisation {method!r}: choose auto, superlu or pardiso")
-    if not _OPEN_TALLIES:
-        return _factorize(matrix, method, strict)
     began = time.perf_counter()
     factors = _factorize(matrix, method, strict)
     elapsed = time.perf_counter() - began
