@@ -13,7 +13,8 @@ _NAMES = {"gamma": ("γ", "gaps, Z(h) − z ~ h^(1−γ)"),
 
 
 def _fmt(value, digits: int = 4) -> str:
-    return "—" if value is None else f"{value:.{digits}g}"
+    """`value` to `digits` significant digits; "—" for None and NaN."""
+    return "—" if value is None or value != value else f"{value:.{digits}g}"
 
 
 def _model(exponent: dict) -> str:
@@ -141,8 +142,8 @@ def _sizes_section(summary: dict, figures: dict[str, Path]) -> list[str]:
             reason = summary["extrapolation_errors"].get(name, "not extrapolated")
             lines.append(f"* {symbol}: not extrapolated: {reason}")
             continue
-        omega = "" if e["omega"] is None else f", ω = {e['omega']:.3g}"
-        p_value = "" if e["p_value"] is None else f", χ² p = {e['p_value']:.2g}"
+        omega = "" if _fmt(e["omega"]) == "—" else f", ω = {e['omega']:.3g}"
+        p_value = "" if _fmt(e["p_value"]) == "—" else f", χ² p = {e['p_value']:.2g}"
         lines.append(f"* {symbol}: form {e['form']}{omega}{p_value} ({e['reason']})")
     cutoff = summary["gap_cutoff"]
     lines += ["", "Gap cut-off: the geometric mean of each packing's smallest gap, h_min(N) = "
