@@ -54,8 +54,9 @@ from .solvers.policy import LPAttempt, SolverPolicy, next_warm_start
 from .stages.finish import CLEANUP_STEP, finish
 from .stages.strict_finish import strict_finish
 from .stages.lp_step import LPStep, lp_step
-from .stages.network_first_stage import network_first
+from .stages.network_first_stage import Certified, network_first
 from .stages.newton_stage import TRIED_BEFORE, newton_or_pivots
+from .stages.strained_step import strained_step
 from .stages.strict_newton_stage import strict_network_first
 from .stages.saved import checkpoint_signature, resumed, save_state
 from .stages.state import LoopState, Run
@@ -277,26 +278,13 @@ def _run(run: Run, state: LoopState, checkpoint: Checkpoint | None,
     settings, history = run.settings, run.history
     deadline = None if settings.time_limit is None else time.perf_counter() + settings.time_limit
     if settings.network_first != "off" and not history.records:
-        if state.cell is not None:
-            state, strict = strict_network_first(run, state, hint, TRIED_BEFORE)
-            if strict is not None:
-                return strict_finish(run, state, strict, StopReason.NETWORK_FIRST, None)
-            if settings.network_first == "require":
-                raise run.fail(state, "network_first='require': the network hint was not "
-                                      "certified (" + (history.notes[-1] if hint is not None
-                                                       else "no hint given") + ")")
-            certified = None
-        else:
-            state, certified = network_first(run, state, hint)
+        state, certified = _network_first(run, state, hint)
         if certified is not None:
-            return finish(run, state, certified.network, certified.reason)
-        if settings.network_first == "require":
-            raise run.fail(state, "network_first='require': no network guessed from the "
-                                  "input was certified (" + history.notes[-1] + ")")
+            return _finish(run, state, certified.network, certified.reason, None)
     network: ContactNetwork | None = None
     reason, verifying, lp = StopReason.MAX_ITERS, False, None
     while history.lps_solved < settings.max_iters:
-        state, lp = lp_step(run, state)
+        state, lp = (lp_step if state.cell is None else strained_step)(run, state)
         network, converged = lp.network, lp.converged(settings)
         if verifying:
             verifying = False
@@ -338,9 +326,33 @@ def _run(run: Run, state: LoopState, checkpoint: Checkpoint | None,
             break
     if network is None:
         raise run.fail(state, f"no LP was solved (max_iters = {settings.max_iters})")
-    if state.cell is not None:
-        return strict_finish(run, state, network, reason, None if lp is None else lp.taken)
-    return finish(run, state, network, reason)
+    return _finish(run, state, network, reason, lp)
+
+
+def _network_first(run: Run, state: LoopState,
+                   hint: np.ndarray | None) -> tuple[LoopState, Certified | None]:
+    """The network-first stage (`calippso.stages.network_first_stage`; in a deformable box,
+    the strict Newton stage on the network hint); with ``network_first="require"``, the
+    run's error when it certified nothing."""
+    if state.cell is None:
+        state, certified = network_first(run, state, hint)
+    else:
+        state, strict = strict_network_first(run, state, hint, TRIED_BEFORE)
+        certified = None if strict is None else Certified(strict, StopReason.NETWORK_FIRST)
+    if certified is None and run.settings.network_first == "require":
+        why = run.history.notes[-1] if state.cell is None or hint is not None else "no hint"
+        raise run.fail(state, f"network_first='require': no network guessed from the input "
+                              f"was certified ({why})")
+    return state, certified
+
+
+def _finish(run: Run, state: LoopState, network: ContactNetwork, reason: StopReason,
+            lp: LPStep | None) -> JammingResult:
+    """The finish of the fixed box (`calippso.stages.finish`) or of a deformable one
+    (`calippso.stages.strict_finish`, which reads the last LP's duals)."""
+    if state.cell is None:
+        return finish(run, state, network, reason)
+    return strict_finish(run, state, network, reason, None if lp is None else lp.taken)
 
 
 def _out_of_time(deadline: float | None) -> bool:

@@ -8,7 +8,9 @@ and what the stage found; each adds its records and notes to the run's history.
 - `network_first_stage`: the input's own contact network, certified with no LP
   (`calippso.certification`).
 - `lp_step`: one LP (bound, solve, update, re-solve with left-out rows that overlap) and the
-  convergence test; in a deformable box, with the strain columns of `calippso.deformable`.
+  convergence test.
+- `strained_step`: the LP step of a deformable box, with the strain columns of
+  `calippso.deformable`.
 - `wall_kick`: a hypostatic network between walls moved out of its layers.
 - `newton_stage`: the Newton certificate of an isostatic network, and contact pivots.
 - `strict_newton_stage`: in a deformable box, the strictly jammed point of a network (the

@@ -5,9 +5,8 @@
 the particles by s* and grows the diameters by √Γ*. If a pair or a wall left out of the LP
 by the safe selection overlaps after the move (round-off at the edge of the selection), it
 is forced into every later LP and the LP is solved again. `LPStep.converged` is the
-convergence test, `LPStep.newton_due` the trigger of the Newton stage. In a deformable box
-(`LoopState.cell`) the LP has the box's strain columns (`calippso.deformable`), and the
-move strains the box.
+convergence test, `LPStep.newton_due` the trigger of the Newton stage. A deformable box
+takes its LP step in `calippso.stages.strained_step`.
 """
 
 from __future__ import annotations
@@ -17,9 +16,6 @@ from typing import Callable
 
 import numpy as np
 
-from ..deformable import (analyse_strained, select_rows, smallest_gap, strain_matrix,
-                          strain_scale, strained_lp)
-from ..geometry.periodic import lattice_wrap
 from ..history import Record
 from ..lp import LinearProgram, build_lp, largest_safe_step, select_pairs, select_walls
 from ..geometry.neighbors import NeighborSearch, Pairs
@@ -31,7 +27,7 @@ from ..step import Step, analyse
 from ..geometry.walls import WallRows, wall_ids, wall_rows_of
 from .state import NO_PAIRS, LoopState, Run
 
-__all__ = ["LPStep", "lp_step", "solve_lp", "record_lp", "INSIDE_BOUND_FRACTION",
+__all__ = ["LPStep", "lp_step", "solve_lp", "solved_lp", "record_lp", "INSIDE_BOUND_FRACTION",
            "VANISHING_STEP_FRACTION"]
 
 #: A step counts as converged only when its largest displacement stays below this fraction
@@ -94,8 +90,6 @@ def lp_step(run: Run, state: LoopState) -> tuple[LoopState, LPStep]:
     JammingError
         The box is too small for any step, or every backend failed.
     """
-    if state.cell is not None:
-        return _strained_step(run, state)
     while True:
         bound = largest_safe_step(state.search, state.step, run.boundaries)
         if bound < run.settings.min_step * VANISHING_STEP_FRACTION:
@@ -171,7 +165,7 @@ def solve_lp(run: Run, state: LoopState, step: float, fixed: np.ndarray,
         Pairs added to the safe selection (`state.forced_walls` are always added).
     """
     lp_number = run.history.lps_solved + 1
-    solved = _solved(run, state, lambda bound: build_lp(
+    solved = solved_lp(run, state, lambda bound: build_lp(
         _pairs(run, state.search, bound, stable, forced), run.n, run.d, bound, fixed,
         _walls(run, state.search, bound, stable, state.forced_walls),
         run.boundaries.zero_modes), step)
@@ -184,7 +178,7 @@ def solve_lp(run: Run, state: LoopState, step: float, fixed: np.ndarray,
     return taken
 
 
-def _solved(run: Run, state: LoopState, build: Callable[[float], LinearProgram],
+def solved_lp(run: Run, state: LoopState, build: Callable[[float], LinearProgram],
             step: float) -> SolvedLP:
     """The LP of `build` at `step` solved by the run's solver policy (from `state.basis`),
     its note kept; the run's error when every backend failed."""
@@ -195,43 +189,6 @@ def _solved(run: Run, state: LoopState, build: Callable[[float], LinearProgram],
     if solved.note is not None:
         run.history.note(solved.note)
     return solved
-
-
-def _strained_step(run: Run, state: LoopState) -> tuple[LoopState, LPStep]:
-    """The LP step in a deformable box: the rows of the step's pairs in the sheared cell
-    (`calippso.deformable.select_rows`, the bound halved until they stay within half the
-    shortest box vector), the LP with the strain columns, and the move: centres by s',
-    the box vectors by I + ε, diameters by √Γ*."""
-    d = run.d
-    # the centres in one cell (the rows bound the image vectors by its diameter), centred on
-    # the pinned particle (the strain's affine move then fits the bound)
-    pinned = np.flatnonzero(run.fixed.any(axis=1))
-    origin = (state.positions[pinned[0]] - 0.5 * state.cell.sum(axis=1) if pinned.size
-              else np.zeros(d))
-    positions = lattice_wrap(state.positions - origin, state.cell) + origin
-    bound = state.step
-    while (rows := select_rows(positions, state.diameters, state.cell, bound)) is None:
-        bound *= 0.5
-        if bound < run.settings.min_step * VANISHING_STEP_FRACTION:
-            raise run.fail(state, "box too small: even a vanishing step would need pairs "
-                                  "beyond half the shortest box vector")
-    scale = strain_scale(state.cell)
-
-    def build(step: float) -> LinearProgram:
-        chosen = rows if step == bound else select_rows(positions, state.diameters,
-                                                        state.cell, step)
-        return strained_lp(*chosen, run.n, d, step, scale, run.fixed)
-
-    solved = _solved(run, state, build, bound)
-    taken = analyse_strained(solved.lp, solved.solution, run.settings, scale,
-                             solved.warm_start is not None)
-    x = taken.solution.x
-    cell = (np.eye(d) + strain_matrix(x[run.n * d:-1], d)) @ state.cell
-    positions = lattice_wrap(positions + x[:run.n * d].reshape(run.n, d), cell)
-    diameters = state.diameters * np.sqrt(1.0 + taken.solution.gamma)
-    state = replace(state, positions=positions, diameters=diameters, cell=cell)
-    record = record_lp(run, state, taken, smallest_gap(positions, diameters, cell))
-    return state, LPStep(taken, taken.lp.step_bound, record, taken.network())
 
 
 def record_lp(run: Run, state: LoopState, taken: Step, min_gap: float,
