@@ -84,15 +84,16 @@ def read_start(packing: calippso.Packing, start: str = "interior-lp"):
     """The path's start (positions, diameters, box, i, j, rattlers) and its Newton solution,
     in mean diameters, after the first LP without crossover; (None, why) when `jam` hands
     no network to the pivots there."""
-    saved = newton_stage.pivot_to_jamming
+    saved = newton_stage.pivot_to_jamming, newton_stage.INTERIOR_PIVOTS
     newton_stage.pivot_to_jamming = _capture
+    newton_stage.INTERIOR_PIVOTS = UNLIMITED   # whatever the number of non-positive forces
     try:
         result = calippso.jam(packing, crossover="off", network_first="off", max_iters=1)
         return None, f"no pivots after LP 1 ({result.stop_reason})"
     except _Captured as captured:
         return captured, ""
     finally:
-        newton_stage.pivot_to_jamming = saved
+        newton_stage.pivot_to_jamming, newton_stage.INTERIOR_PIVOTS = saved
 
 
 def network_first_rounds(packing: calippso.Packing, hint: np.ndarray,
