@@ -81,6 +81,7 @@ def read_inputs(paths: list[Path]) -> list[JammingResult]:
 
 
 def timed(call) -> float:
+    """Wall seconds of `call()`."""
     clock = time.perf_counter()
     call()
     return time.perf_counter() - clock

@@ -203,8 +203,10 @@ def _weighted_fit(design: np.ndarray, values: np.ndarray,
     return params, np.sum(residual ** 2, axis=-1)
 
 
-def _fit_form(n, values, weights, form, omega):
-    """Best parameters (x_∞, a, ω) and χ² of one form for every row of `values` (D, S)."""
+def _fit_form(n: np.ndarray, values: np.ndarray, weights: np.ndarray, form: str,
+              omega: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Best x_∞, a, ω and χ² of one form for every row of `values` (D, S): four arrays of
+    shape (D,); ω fitted on the grid when `omega` is None for the form "power"."""
     if form == "constant":
         params, chi = _weighted_fit(_design(n, 0.0, form), values, weights)
         return params[:, 0], np.zeros(len(params)), np.full(len(params), np.nan), chi
@@ -219,7 +221,8 @@ def _fit_form(n, values, weights, form, omega):
     return params[best, rows, 0], params[best, rows, 1], grid[best], chi[best, rows]
 
 
-def _refined_omega(n, values, weights, start: float) -> tuple[float, float, float, float]:
+def _refined_omega(n: np.ndarray, values: np.ndarray, weights: np.ndarray,
+                   start: float) -> tuple[float, float, float, float]:
     """x_∞, a, ω, χ² of the power law with ω fitted, refined from the grid's best ω."""
     grid = np.geomspace(*OMEGA_RANGE, OMEGA_GRID_POINTS)
     k = int(np.argmin(np.abs(grid - start)))
@@ -236,7 +239,9 @@ def _refined_omega(n, values, weights, start: float) -> tuple[float, float, floa
     return float(params[0, 0]), float(params[0, 1]), omega, float(chi[0])
 
 
-def _candidate(n, values, sigmas, form, omega) -> Correction:
+def _candidate(n: np.ndarray, values: np.ndarray, sigmas: np.ndarray, form: str,
+               omega: float | None) -> Correction:
+    """One form fitted to the measurements (its interval is drawn later, if chosen)."""
     weights = 1.0 / sigmas ** 2
     x_inf, amp, om, chi = (float(v[0]) for v in _fit_form(n, values[None, :], weights, form,
                                                            omega))

@@ -60,6 +60,7 @@ def plot_exponents_vs_n(analysis: FiniteSizeAnalysis, path: Path) -> Path:
 
 
 def _form_label(chosen) -> str:
+    """The legend of the drawn correction."""
     if chosen.form == "constant":
         return "constant"
     if chosen.form == "inverse_n":
