@@ -170,6 +170,20 @@ def test_gap_cutoff_scales_as_n_to_minus_one_over_one_minus_gamma():
         np.interp(probe, x_large, y_large), rel=0.2)   # unscaled they differ 8-fold
 
 
+def test_a_size_without_gaps_is_left_out_of_the_cutoff_slope():
+    """A size whose packings hold no gap (all beyond the pooling's largest: an empty sample)
+    has h_min nan and no packings; the slope is that of the other sizes."""
+    rng = np.random.default_rng(7)
+    by_size = {n: PooledSample.concatenate(
+        [(0.1 * rng.random(int(0.3 * n)) ** (1 / (1 - GAMMA)), 0.5 * n) for _ in range(20)])
+        for n in (1024, 4096)}
+    both = gap_cutoff(by_size)
+    by_size[32] = PooledSample.concatenate([(np.zeros(0), 16.0)])
+    with_empty = gap_cutoff(by_size)
+    assert np.isnan(with_empty.h_min[0]) and with_empty.packings[0] == 0
+    assert with_empty.slope == pytest.approx(both.slope, rel=1e-12)
+
+
 # --- samples and sizes -----------------------------------------------------------------------
 
 def test_select_and_minima_of_a_pooled_sample():

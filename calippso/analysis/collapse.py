@@ -88,10 +88,13 @@ def gap_cutoff(gaps_by_size: dict[int, PooledSample], confidence: float = 0.95) 
     -------
     GapCutoff
 
+    A size whose packings hold no gap below the pooling's largest has h_min nan and no
+    packings counted; the slope is fitted on the other sizes.
+
     Raises
     ------
     ValueError
-        No size, or a size whose packings hold no gap.
+        No size.
     """
     if not gaps_by_size:
         raise ValueError("gap_cutoff needs the gaps of at least one size")
@@ -101,15 +104,15 @@ def gap_cutoff(gaps_by_size: dict[int, PooledSample], confidence: float = 0.95) 
     for n in sizes:
         logs = np.log(gaps_by_size[int(n)].minima())
         logs = logs[np.isfinite(logs)]
-        if logs.size == 0:
-            raise ValueError(f"no gap in the packings of N = {int(n)}")
-        means.append(float(np.mean(logs)))
+        means.append(float(np.mean(logs)) if logs.size else float("nan"))
         sigmas.append(float(np.std(logs, ddof=1) / np.sqrt(logs.size)) if logs.size > 1
                       else float("nan"))
         counts.append(logs.size)
     means, sigmas = np.array(means), np.array(sigmas)
     interval = np.exp(np.c_[means - z * sigmas, means + z * sigmas])
-    slope, slope_interval = _log_slope(np.log(sizes), means, sigmas, z)
+    measured = np.isfinite(means)
+    slope, slope_interval = _log_slope(np.log(sizes[measured]), means[measured],
+                                       sigmas[measured], z)
     gamma_ends = _gamma_of_slopes(*slope_interval)
     return GapCutoff(sizes=sizes, h_min=np.exp(means), interval=interval,
                      packings=np.array(counts), slope=slope,

@@ -184,7 +184,8 @@ def finite_size_analysis(results: JammingResult | Iterable[JammingResult], *,
         exponents, errors = {}, {}
         for name in EXPONENT_NAMES:
             floor = ({"lower": float(cutoff.h_min[k])}
-                     if name == "gamma" and gap_floor == "cutoff" else {})
+                     if name == "gamma" and gap_floor == "cutoff"
+                     and np.isfinite(cutoff.h_min[k]) else {})
             try:
                 exponents[name] = exponent_from_sample(name, own[name], upper=uppers[name],
                                                        model=models[name], **floor,
