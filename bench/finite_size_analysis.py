@@ -14,9 +14,9 @@ there are fewer). Then it times, on one process:
 * ``report, two sizes``: `calippso.report` of the tiled packings with the inputs themselves
   (the per-size fits, the extrapolation and the figures across sizes).
 
-Run under the CPU lock::
+Run alone on the machine::
 
-    flock /tmp/cpu.lock python bench/finite_size_analysis.py --inputs DIR/d3_n1024 \\
+    python bench/finite_size_analysis.py --inputs DIR/d3_n1024 \\
         --tile 2 --packings 50 --json rows.json
 
 Prints one row per case (packings, N, seconds) and writes them to ``--json``.

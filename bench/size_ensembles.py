@@ -16,8 +16,8 @@ atomically as ``DIR/d<d>_n<N>/packing_<seed>.npz`` (the full `JammingResult`) wi
 ``packing_<seed>.json`` beside it (seed, quench and jam seconds, certification); a packing
 that fails certification gets ``packing_<seed>.failed.json`` instead and is skipped by later
 runs unless ``--retry-failed``. Each packing (quench and jam) holds the lock file
-``--lock`` (default /tmp/cpu.lock, the lock of ``flock(1)``) for its whole run and releases
-it before the next, so that other work on the machine interleaves; ``--max-minutes``
+``--lock FILE`` (a lock file of ``flock(1)``; none by default) for its whole run and
+releases it before the next, so that other work on the machine interleaves; ``--max-minutes``
 stops before starting a packing once that much wall time has passed.
 
 Prints one row per packing made and, at the end, the count per size; ``--json FILE`` writes
@@ -193,8 +193,8 @@ def main(argv: list[str] | None = None) -> None:
                         help="N:COUNT per size, made in this order")
     parser.add_argument("--d", type=int, default=3)
     parser.add_argument("--first-seed", type=int, default=1)
-    parser.add_argument("--lock", default="/tmp/cpu.lock",
-                        help="lock file held for each packing ('none': no lock)")
+    parser.add_argument("--lock", default="none",
+                        help="lock file held for each packing ('none', the default: no lock)")
     parser.add_argument("--max-minutes", type=float, default=None)
     parser.add_argument("--retry-failed", action="store_true")
     parser.add_argument("--json", type=Path, default=None)
