@@ -242,3 +242,34 @@ def assert_jammed(result) -> None:
     assert n_stable > packing.d + 1, result.status
     assert result.n_contacts == packing.d * (n_stable - 1) + 1, result.status
     assert result.isostatic and result.isostaticity_gap == 0
+
+
+def kill_after_saved_lps(call: str, checkpoint: Path, lps: int, poll: float = 0.05) -> None:
+    """Run `call` (Python source that jams with ``checkpoint=``, the tests' helpers on its
+    path) in a child process and kill it with SIGKILL once its checkpoint holds `lps` LPs.
+
+    Raises AssertionError when the run ends (or 300 s pass) before it could be killed.
+    """
+    import signal
+    import subprocess
+    import time
+
+    tests = Path(__file__).resolve().parent
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(tests), str(tests.parent), os.environ.get("PYTHONPATH", "")])}
+    process = subprocess.Popen([sys.executable, "-c", call], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and process.poll() is None:
+            if checkpoint.exists():
+                with np.load(checkpoint) as saved:
+                    if saved["history_phi"].shape[0] >= lps:
+                        break
+            time.sleep(poll)
+        assert process.poll() is None, "the run ended before it could be killed"
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+    finally:
+        if process.poll() is None:
+            process.kill()

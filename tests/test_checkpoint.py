@@ -1,21 +1,13 @@
 """jam(..., checkpoint=path): state saved after every LP, exact resumption, even after SIGKILL."""
 
-import os
 import re
-import signal
-import subprocess
-import sys
-import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 from configurations import random_sequential_addition
-from conftest import assert_jammed
+from conftest import assert_jammed, kill_after_saved_lps
 
 from calippso import jam
-
-TESTS = Path(__file__).resolve().parent
 
 
 def start_configuration():
@@ -64,24 +56,7 @@ def test_run_killed_by_sigkill_resumes(tmp_path, uninterrupted):
         "from configurations import random_sequential_addition\n"
         "from calippso import jam\n"
         f"jam(random_sequential_addition(64, 3, 0.3, seed=5), checkpoint={str(path)!r})\n")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(TESTS), str(TESTS.parent), os.environ.get("PYTHONPATH", "")])}
-    process = subprocess.Popen([sys.executable, "-c", script], env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 300
-        while time.monotonic() < deadline and process.poll() is None:
-            if path.exists():
-                with np.load(path) as saved:
-                    if saved["history_phi"].shape[0] >= 8:
-                        break
-            time.sleep(0.05)
-        assert process.poll() is None, "the run ended before it could be killed"
-        process.send_signal(signal.SIGKILL)
-        process.wait()
-    finally:
-        if process.poll() is None:
-            process.kill()
+    kill_after_saved_lps(script, path, 8)
     resumed = jam(start_configuration(), checkpoint=path)
     assert_jammed(resumed)
     assert_same_result(resumed, uninterrupted)

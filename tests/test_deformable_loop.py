@@ -1,22 +1,15 @@
 """jam(box="deformable") runs the loop of the fixed box: checkpoints and exact resumption
 (even after SIGKILL), the time limit, the network hint, on_lp and progress lines."""
 
-import os
-import signal
-import subprocess
-import sys
-import time
-from pathlib import Path
-
 import numpy as np
 import pytest
 from configurations import random_sequential_addition
+from conftest import kill_after_saved_lps
 
 import lattices
 from calippso import StopReason, jam
 from calippso.deformable import strain_count
 
-TESTS = Path(__file__).resolve().parent
 #: The loose start of these tests: N = 64 spheres at φ = 0.3 (d = 3), which a deformable
 #: run takes to a strictly jammed packing in about 70 LPs (~2 s).
 START = "random_sequential_addition(64, 3, 0.3, seed=5)"
@@ -76,24 +69,7 @@ def test_run_killed_by_sigkill_resumes(tmp_path, uninterrupted):
     script = ("from configurations import random_sequential_addition\n"
               "from calippso import jam\n"
               f"jam({START}, box='deformable', checkpoint={str(path)!r})\n")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(TESTS), str(TESTS.parent), os.environ.get("PYTHONPATH", "")])}
-    process = subprocess.Popen([sys.executable, "-c", script], env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 300
-        while time.monotonic() < deadline and process.poll() is None:
-            if path.exists():
-                with np.load(path) as saved:
-                    if saved["history_phi"].shape[0] >= 15:
-                        break
-            time.sleep(0.02)
-        assert process.poll() is None, "the run ended before it could be killed"
-        process.send_signal(signal.SIGKILL)
-        process.wait()
-    finally:
-        if process.poll() is None:
-            process.kill()
+    kill_after_saved_lps(script, path, 15, poll=0.02)
     with np.load(path) as saved:
         solved = saved["history_phi"].shape[0]
     assert 15 <= solved < uninterrupted.iterations
