@@ -105,7 +105,6 @@ def _follow(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np
     basis = (None if refined.factorization is None
              else Basis(*refined.factorization, stable))
     vertex = Vertex(i, j, stable, refined, basis)
-    factorizations = refined.factorizations
     seen = {_network_digest(vertex)}
     degenerate = False
 
@@ -113,7 +112,7 @@ def _follow(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np
         return PivotPath(vertex.i, vertex.j, ~vertex.stable,
                          _from_start(vertex.refinement, start_positions, start_diameters, box,
                                      vertex.stable),
-                         tuple(swaps), factorizations, time.perf_counter() - began, jammed)
+                         tuple(swaps), time.perf_counter() - began, jammed)
 
     while True:
         search = NeighborSearch(vertex.refinement.positions, vertex.refinement.diameters, box)
@@ -137,8 +136,7 @@ def _follow(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np
                 break
         if step is None:
             return (ended(False) if swaps else None), failure
-        next_vertex, swap, solves = step
-        factorizations += solves
+        next_vertex, swap = step
         degenerate = swap.growth <= DEGENERATE_STEP
         if not degenerate:   # Γ grew: no network seen so far can come back
             seen.clear()
@@ -154,7 +152,7 @@ def _follow(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np
 
 
 def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
-           attached: bool = False) -> tuple[tuple[Vertex, Swap, int] | None, str]:
+           attached: bool = False) -> tuple[tuple[Vertex, Swap] | None, str]:
     """Release contact `released` of `vertex`, follow the floppy mode, close the first pair.
 
     Parameters
@@ -168,7 +166,7 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
 
     Returns
     -------
-    ((next vertex, swap, factorisations) or None, str)
+    ((next vertex, swap) or None, str)
     """
     n, d = vertex.refinement.positions.shape
     keep = np.ones(vertex.i.shape[0], dtype=bool)
@@ -191,9 +189,8 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
     if mode is None:
         return None, SINGULAR_RELEASE
     direction, made = mode
-    solves = 0
     if made is not None:   # new factors: the basis of this pivot (and the next ones)
-        basis, swapped, solves = made, (), 1
+        basis, swapped = made, ()
     c_i, c_j = int(vertex.i[released]), int(vertex.j[released])
     if stable[c_i] and stable[c_j]:
         c_pair = search.pairs_of(np.array([c_i]), np.array([c_j]))
@@ -216,7 +213,6 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
                                    factors=factors)
         if refined is None:
             continue
-        solves += refined.factorizations
         growth = float(np.mean(refined.diameters / diameters)) - 1.0
         if growth < -DEGENERATE_STEP:
             continue
@@ -234,10 +230,9 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
             rejoined = _rejoin_caged(moved, vertex, i_a, j_a, stable, (c_i, c_j))
             if rejoined is not None:
                 joined, pairs, joined_growth = rejoined
-                solves += joined.refinement.factorizations
                 swap = Swap((c_i, c_j), pairs[0], max(joined_growth, 0.0),
                             int(np.count_nonzero(~stable & vertex.stable)), rejoined=1)
-                return (joined, swap, solves), ""
+                return (joined, swap), ""
             return None, CAGE_CLOSED   # a later pair of the ratio test would close it too
         refined = separated
         if refined.factorization is not None:
@@ -251,7 +246,7 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
         candidate = Vertex(i_new, j_new, now_stable, refined, next_basis, next_swaps)
         swap = Swap((c_i, c_j), (int(near.i[closing]), int(near.j[closing])), max(growth, 0.0),
                     int(np.count_nonzero(now_rattlers & vertex.stable)))
-        return (candidate, swap, solves), ""
+        return (candidate, swap), ""
     return None, "Newton found no vertex without overlap along the floppy mode"
 
 

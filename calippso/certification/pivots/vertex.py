@@ -25,8 +25,9 @@ __all__ = ["Swap", "PivotPath", "Vertex", "Basis", "describe_path", "DEGENERATE_
 DEGENERATE_STEP = 1e-14
 #: Rows swapped into one factorisation (`Basis`) before the Jacobian is factorised again.
 MAX_ROW_SWAPS = 40
-#: The k × k system of the Woodbury identity is refused beyond this condition number (its
-#: solves would lose the accuracy that the chord steps and refinement need).
+#: The k × k system of the Woodbury identity, its rows scaled to unit size, is refused beyond
+#: this condition number (its solves would lose the accuracy that the chord steps and
+#: refinement need).
 MAX_SMALL_CONDITION = 1e10
 #: Swaps listed by name in `describe_path`.
 LISTED_SWAPS = 5
@@ -79,8 +80,6 @@ class PivotPath:
         displacement measured from the start of the path.
     swaps : tuple of Swap
         The pivots in order.
-    factorizations : int
-        Sparse LU factorisations (directions and Newton solves).
     seconds : float
         Wall time of the path.
     jammed : bool
@@ -95,7 +94,6 @@ class PivotPath:
     rattlers: np.ndarray
     refinement: Refinement
     swaps: tuple[Swap, ...]
-    factorizations: int
     seconds: float
     jammed: bool = True
     cost: Tally = field(default_factory=Tally)
@@ -104,6 +102,11 @@ class PivotPath:
     def pivots(self) -> int:
         """Pivots taken."""
         return len(self.swaps)
+
+    @property
+    def factorizations(self) -> int:
+        """Sparse LU factorisations made by the path (directions, Newton, rattlers)."""
+        return self.cost.factorizations
 
     @property
     def degenerate(self) -> int:
