@@ -350,7 +350,7 @@ def _contacts_within(packing: Packing, tolerance: float) -> tuple[np.ndarray, np
     reach = 1.0 + AMBIGUITY_WINDOW * tolerance
     periodic = None if packing.boundaries.is_periodic else packing.periodic
     if packing.box_matrix is not None:   # a sheared box
-        near = sheared_pairs_within(packing.positions, packing.diameters, packing.box_matrix,
+        near = sheared_pairs_within(packing.positions, packing.diameters, packing.search_cell,
                                     float(packing.diameters.max()) * reach)
     else:
         search = NeighborSearch(packing.positions, packing.diameters, packing.box, periodic)
@@ -361,7 +361,7 @@ def _contacts_within(packing: Packing, tolerance: float) -> tuple[np.ndarray, np
         wall_gaps = np.zeros(0)
         wall_pairs = np.zeros((0, 2), np.int64)
     else:
-        rows = wall_rows_within(search.positions, packing.diameters, packing.box,
+        rows = wall_rows_within(packing.positions, packing.diameters, packing.box,
                                 packing.boundaries, 0.0, reach)
         wall_gaps = rows.gaps
         wall_pairs = np.stack([rows.particle, rows.wall], axis=1)

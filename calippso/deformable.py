@@ -29,6 +29,16 @@ At the optimum, the strain columns say that the contact stress Σ μ_ij r_ij r_i
 p I, with p the multiplier of t ≤ 0: the stress is isotropic and the pressure is the
 volume's multiplier (`JammingResult.stress`, docs/theory.md).
 
+In a container (flat walls on some axes, or a cylinder) the walls stay where they are: the
+strain acts on the periodic axes alone (d_p(d_p+1)/2 variables for d_p periodic axes, the
+trace being that of the periodic block), the box matrix keeps its bounded axes apart
+(`calippso.geometry.boundaries.Boundaries.check_block_matrix`), and the wall rows are the
+fixed box's (`calippso.lp`): the affine part ε r_i of s'_i moves a centre along the periodic
+axes only, and a wall's distance does not depend on them. The loop holds the box matrix
+padded along the bounded axes (`Boundaries.search_cell`), so that its lattice searches
+find no image across a wall. A container without a periodic axis has no strain and is
+refused.
+
 This module holds what is the box's: the strain variables and their columns
 (`strained_lp`), the rows of a step in a sheared cell (`select_rows`), the strain's share
 of an LP's answer (`analyse_strained`), the stress (`contact_stress`, `certificate_note`)
@@ -44,8 +54,10 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
+from .geometry.boundaries import Boundaries
 from .geometry.packing import Packing
 from .geometry.sheared_search import half_shortest_vector, sheared_pairs_within
+from .geometry.walls import WallRows, empty_walls, wall_rows_within
 from .history import History
 from .lp import LinearProgram, build_lp
 from .geometry.neighbors import Pairs
@@ -54,9 +66,10 @@ from .settings import JamSettings
 from .solvers import LPSolution
 from .step import BINDING_REDUCED_COST, Step, analyse, at_bound
 
-__all__ = ["strain_count", "strict_zero_modes", "strain_matrix", "strain_coefficients",
-           "strained_lp", "select_rows", "analyse_strained", "median_gap", "smallest_gap",
-           "contact_stress", "certificate_note", "strict_category", "floppy_strict_rows",
+__all__ = ["strain_count", "strict_zero_modes", "check_strainable", "strain_matrix",
+           "strain_coefficients", "strained_lp", "select_rows", "container_walls",
+           "analyse_strained", "median_gap", "smallest_gap", "contact_stress", "anisotropy",
+           "certificate_note", "strict_category", "floppy_strict_rows",
            "DEFORMABLE_NOTE", "INITIAL_STEP_FLOOR"]
 
 #: The note every deformable run carries.
@@ -76,6 +89,8 @@ STRAIN_BOUND = 1.0
 #: The strict rows have a floppy mode when the smallest eigenvalue of AᵀA is below this
 #: times its mean diagonal (as `calippso.categories.FLOPPY_EIGENVALUE`).
 FLOPPY_EIGENVALUE = 1e-12
+#: `smallest_gap` looks at the walls within this many radii of a centre.
+NEAR_WALL = 1.01
 #: Up to this many columns the stiffness spectrum is computed densely.
 DENSE_STIFFNESS = 200
 
@@ -85,11 +100,22 @@ def strain_count(d: int) -> int:
     return d * (d + 1) // 2
 
 
-def strict_zero_modes(d: int) -> int:
+def strict_zero_modes(boundaries: Boundaries) -> int:
     """The 'zero modes' that make `calippso.geometry.contacts.isostaticity_gap` count a strictly
-    isostatic network, N_c = d (N_s − 1) + d(d+1)/2: the d translations less the
-    d(d+1)/2 − 1 degrees of freedom of a box whose volume does not grow (docs/theory.md)."""
-    return d + 1 - strain_count(d)
+    isostatic network: the container's rigid motions (`Boundaries.zero_modes`; d translations
+    in a periodic box) less the d_p(d_p+1)/2 − 1 degrees of freedom of the periodic axes'
+    shape at a volume that does not grow (docs/theory.md). Periodic box:
+    N_c = d (N_s − 1) + d(d+1)/2."""
+    return boundaries.zero_modes + 1 - strain_count(boundaries.n_periodic)
+
+
+def check_strainable(boundaries: Boundaries) -> None:
+    """Raise ValueError (one line) for a container with no periodic axis: its box has no
+    strain."""
+    if not boundaries.periodic.any():
+        raise ValueError(f"box='deformable' needs a periodic axis: the strain acts on the "
+                         f"periodic axes and this container ({boundaries.describe()}) has "
+                         f"none; use the fixed box")
 
 
 def _off_diagonal(d: int) -> list[tuple[int, int]]:
@@ -107,9 +133,10 @@ def _strain_columns(left: np.ndarray, right: np.ndarray) -> np.ndarray:
     return np.stack(columns, axis=1)
 
 
-def strain_coefficients(vectors: np.ndarray, distances: np.ndarray) -> np.ndarray:
+def strain_coefficients(vectors: np.ndarray, distances: np.ndarray,
+                        periodic: np.ndarray | None = None) -> np.ndarray:
     """The strain columns of the pair rows: r ε r / |r| as a linear function of the strain
-    variables (module docstring), shape (M, d(d+1)/2).
+    variables (module docstring), shape (M, d_p(d_p+1)/2).
 
     Parameters
     ----------
@@ -117,26 +144,36 @@ def strain_coefficients(vectors: np.ndarray, distances: np.ndarray) -> np.ndarra
         Pair vectors r_ij (length units).
     distances : ndarray, shape (M,)
         |r_ij|.
+    periodic : ndarray, shape (d,), bool, optional
+        The axes the strain acts on (`Boundaries.periodic`); None: every axis.
     """
+    if periodic is not None:
+        vectors = vectors[:, periodic]
     return _strain_columns(vectors / distances[:, None], vectors)
 
 
-def strain_matrix(variables: np.ndarray, d: int) -> np.ndarray:
+def strain_matrix(variables: np.ndarray, periodic: np.ndarray) -> np.ndarray:
     """The symmetric strain ε, shape (d, d), from the LP's strain variables (module
-    docstring: diagonal differences, off-diagonal entries, trace)."""
-    strain = np.zeros((d, d))
-    diagonal = variables[:d - 1]
-    strain[np.arange(d - 1), np.arange(d - 1)] = diagonal
-    strain[d - 1, d - 1] = variables[-1] - diagonal.sum()
-    for value, (a, b) in zip(variables[d - 1:-1], _off_diagonal(d)):
-        strain[a, b] = strain[b, a] = value
+    docstring: diagonal differences, off-diagonal entries, trace) of the `periodic` axes
+    (shape (d,), bool); zero in the rows and columns of the other axes."""
+    axes = np.flatnonzero(periodic)
+    k = axes.size
+    block = np.zeros((k, k))
+    diagonal = variables[:k - 1]
+    block[np.arange(k - 1), np.arange(k - 1)] = diagonal
+    block[k - 1, k - 1] = variables[-1] - diagonal.sum()
+    for value, (a, b) in zip(variables[k - 1:-1], _off_diagonal(k)):
+        block[a, b] = block[b, a] = value
+    strain = np.zeros((periodic.size, periodic.size))
+    strain[np.ix_(axes, axes)] = block
     return strain
 
 
-def strain_scale(matrix: np.ndarray) -> float:
+def strain_scale(matrix: np.ndarray, periodic: np.ndarray) -> float:
     """e / b: the bound on every strain variable per unit of the step bound b,
-    `STRAIN_BOUND` / W with W the longest box vector (mean diameters)."""
-    return STRAIN_BOUND / float(np.linalg.norm(matrix, axis=0).max())
+    `STRAIN_BOUND` / W with W the longest periodic box vector (mean diameters; `periodic`
+    shape (d,), bool)."""
+    return STRAIN_BOUND / float(np.linalg.norm(matrix[:, periodic], axis=0).max())
 
 
 def _images(positions: np.ndarray, matrix: np.ndarray, pairs: Pairs) -> np.ndarray:
@@ -146,20 +183,22 @@ def _images(positions: np.ndarray, matrix: np.ndarray, pairs: Pairs) -> np.ndarr
     return np.rint(np.linalg.solve(matrix, shift.T)).T @ matrix.T
 
 
-def strained_lp(pairs: Pairs, images: np.ndarray, n: int, d: int, bound: float,
-                scale: float, fixed: np.ndarray) -> LinearProgram:
+def strained_lp(pairs: Pairs, images: np.ndarray, walls: WallRows, n: int, bound: float,
+                scale: float, fixed: np.ndarray, boundaries: Boundaries) -> LinearProgram:
     """The LP of one step (module docstring): the fixed box's LP of these rows
-    (`calippso.lp.build_lp`) with the strain columns between the displacements s' (affine
-    part included) and γ; the strain enters the rows whose image vector (`images`, shape
-    (M, d)) is not zero. Strain variables are bounded by `scale` × `bound`, the trace by 0
-    above; `fixed` (N, d) are the pinned coordinates."""
-    lp = build_lp(pairs, n, d, bound, fixed, zero_modes=strict_zero_modes(d))
-    k, moves = strain_count(d), n * d
+    (`calippso.lp.build_lp`, pairs then `walls`) with the strain columns of the periodic
+    axes between the displacements s' (affine part included) and γ; the strain enters the
+    pair rows whose image vector (`images`, shape (M, d)) is not zero. Strain variables are
+    bounded by `scale` × `bound`, the trace by 0 above; `fixed` (N, d) are the pinned
+    coordinates."""
+    d, periodic = boundaries.d, boundaries.periodic
+    lp = build_lp(pairs, n, d, bound, fixed, walls, zero_modes=strict_zero_modes(boundaries))
+    k, moves = strain_count(boundaries.n_periodic), n * d
     across = np.flatnonzero(np.any(images != 0.0, axis=1))
-    normals = pairs.vectors[across] / pairs.distances[across, None]
-    strain = sp.csc_matrix((_strain_columns(normals, images[across]).ravel(),
+    normals = pairs.vectors[across][:, periodic] / pairs.distances[across, None]
+    strain = sp.csc_matrix((_strain_columns(normals, images[across][:, periodic]).ravel(),
                             (np.repeat(across, k), np.tile(np.arange(k), across.size))),
-                           shape=(len(pairs), k))
+                           shape=(lp.n_rows, k))
     # the strain's CSC columns spliced in before γ's (both matrices are canonical)
     fixed_box, split = lp.matrix, lp.matrix.indptr[moves]
     matrix = sp.csc_matrix((
@@ -168,7 +207,7 @@ def strained_lp(pairs: Pairs, images: np.ndarray, n: int, d: int, bound: float,
                         fixed_box.indices[split:]]),
         np.concatenate([fixed_box.indptr[:moves + 1], split + strain.indptr[1:],
                         strain.nnz + fixed_box.indptr[moves + 1:]])),
-        shape=(len(pairs), moves + k + 1))
+        shape=(lp.n_rows, moves + k + 1))
     limit = np.full(k, bound)
     lower = np.concatenate([lp.col_lower[:moves], -limit * scale, lp.col_lower[moves:]])
     upper = np.concatenate([lp.col_upper[:moves], limit * scale, lp.col_upper[moves:]])
@@ -177,17 +216,23 @@ def strained_lp(pairs: Pairs, images: np.ndarray, n: int, d: int, bound: float,
 
 
 def select_rows(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
-                bound: float) -> tuple[Pairs, np.ndarray] | None:
-    """Every pair that could come into contact in a step of bound b, and its image vector
-    (`_images`); None when that selection would reach beyond half the shortest box vector.
-    A pair moves by at most 2√d b + √(2d² − 1) e |m| (e = `strain_scale` b bounds every
-    strain variable, and √(2d² − 1) e the strain's operator norm, |ε_dd| ≤ d e through the
-    trace); |m| is at most the cell's diameter plus the cutoff."""
-    d = positions.shape[1]
+                bound: float, boundaries: Boundaries, box: np.ndarray
+                ) -> tuple[Pairs, np.ndarray, WallRows] | None:
+    """Every pair that could come into contact in a step of bound b, its image vector
+    (`_images`), and every particle–wall pair that could (`calippso.lp.select_walls`'s rule,
+    with the same bound g on √Γ); None when that selection would reach beyond half the
+    shortest box vector. A pair moves by at most 2√d b + √(2d_p² − 1) e |m| (e =
+    `strain_scale` b bounds every strain variable, and √(2d_p² − 1) e the strain's operator
+    norm on the d_p periodic axes, |ε_dd| ≤ d_p e through the trace); |m| is at most the
+    periodic cell's diameter plus the cutoff. `matrix` is the search cell
+    (`Boundaries.search_cell`), `box` (d,) the sides (those of the walls do not change)."""
+    d, periodic = positions.shape[1], boundaries.periodic
+    d_p = int(periodic.sum())
     absolute = 2.0 * np.sqrt(d) * bound
-    per_image = np.sqrt(2.0 * d * d - 1.0) * strain_scale(matrix) * bound
+    per_image = np.sqrt(2.0 * d_p * d_p - 1.0) * strain_scale(matrix, periodic) * bound
     half = half_shortest_vector(matrix)
-    widest = float(np.linalg.norm(matrix, axis=0).sum()) + SAFE_REACH * half
+    widest = (float(np.linalg.norm(matrix[:, periodic], axis=0).sum())
+              + SAFE_REACH * half)
     nearest = sheared_pairs_within(positions, diameters, matrix,
                                    min(SAFE_REACH * half, 1.5 * float(diameters.max())))
     if not len(nearest):
@@ -202,7 +247,18 @@ def select_rows(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray
     images = _images(positions, matrix, pairs)
     reach = absolute + per_image * np.linalg.norm(images, axis=1)
     keep = pairs.distances - reach <= growth * pairs.sigma
-    return pairs.subset(keep), images[keep]
+    return pairs.subset(keep), images[keep], container_walls(positions, diameters, boundaries,
+                                                             box, bound, growth)
+
+
+def container_walls(positions: np.ndarray, diameters: np.ndarray, boundaries: Boundaries,
+                    box: np.ndarray, reach: float = 0.0, growth: float = 1.0) -> WallRows:
+    """The particle–wall pairs within growth · σ_i/2 + reach of their wall
+    (`calippso.geometry.walls.wall_rows_within`); none in a periodic box. Shapes: positions
+    (N, d), diameters (N,), box (d,) the sides (length units)."""
+    if boundaries.is_periodic:
+        return empty_walls(positions.shape[1])
+    return wall_rows_within(positions, diameters, box, boundaries, reach, growth)
 
 
 def analyse_strained(lp: LinearProgram, solution: LPSolution, settings: JamSettings,
@@ -211,7 +267,8 @@ def analyse_strained(lp: LinearProgram, solution: LPSolution, settings: JamSetti
     and γ columns), with the strain's share: the largest move is that of a stable particle
     or of a strain variable (over `scale`: in units of the step bound), and a strain
     variable at its bound with a binding reduced cost holds the step back too."""
-    moves, k = lp.n * lp.d, strain_count(lp.d)
+    moves = lp.n * lp.d
+    k = lp.n_cols - moves - 1
     kept = np.r_[0:moves, moves + k]
     taken = analyse(replace(lp, matrix=lp.matrix[:, kept], col_lower=lp.col_lower[kept],
                             col_upper=lp.col_upper[kept]),
@@ -239,10 +296,16 @@ def median_gap(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray)
     return float(np.median(nearest))
 
 
-def smallest_gap(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray) -> float:
-    """The smallest relative gap of the pairs within 1.01 diameters."""
+def smallest_gap(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
+                 boundaries: Boundaries | None = None, box: np.ndarray | None = None) -> float:
+    """The smallest relative gap of the pairs within 1.01 diameters, and of the particles
+    to the container's walls (`boundaries`, sides `box` (d,); None: a periodic box)."""
     cutoff = min(SAFE_REACH * half_shortest_vector(matrix), float(diameters.max()) * 1.01)
-    return sheared_pairs_within(positions, diameters, matrix, cutoff).smallest_gap()
+    gap = sheared_pairs_within(positions, diameters, matrix, cutoff).smallest_gap()
+    if boundaries is None or boundaries.is_periodic:
+        return gap
+    return min(gap, container_walls(positions, diameters, boundaries, box,
+                                    growth=NEAR_WALL).smallest_gap())
 
 
 def contact_stress(vectors: np.ndarray, forces: np.ndarray, volume: float) -> np.ndarray:
@@ -252,40 +315,53 @@ def contact_stress(vectors: np.ndarray, forces: np.ndarray, volume: float) -> np
     return 0.5 * (stress + stress.T)
 
 
-def certificate_note(lp: LinearProgram, solution: LPSolution, stress: np.ndarray) -> str:
+def anisotropy(stress: np.ndarray, periodic: np.ndarray) -> tuple[float, float]:
+    """The pressure p = tr/d_p of the periodic block of `stress` (shape (d, d); `periodic`
+    (d,), bool) and that block's anisotropy max |stress − p I| / p (NaN when p ≤ 0)."""
+    block = stress[np.ix_(periodic, periodic)]
+    pressure = float(np.trace(block)) / block.shape[0]
+    if not pressure > 0:
+        return pressure, float("nan")
+    return pressure, float(np.abs(block - pressure * np.eye(block.shape[0])).max()) / pressure
+
+
+def certificate_note(lp: LinearProgram, solution: LPSolution, stress: np.ndarray,
+                     periodic: np.ndarray) -> str:
     """The strain certificate of the last LP: the anisotropy of its own contact stress
-    Σ μ r rᵀ/|r| (over every row), and its pressure against the volume's multiplier (the
-    reduced cost of the trace column); then that of the final forces (`stress`)."""
-    d, pairs = lp.d, lp.pairs
-    lp_stress = np.einsum("k,ka,kb->ab", solution.duals / pairs.distances, pairs.vectors,
+    Σ μ r rᵀ/|r| (over every pair row) on the `periodic` axes (shape (d,), bool), and its
+    pressure against the volume's multiplier (the reduced cost of the trace column); then
+    that of the final forces (`stress`)."""
+    pairs = lp.pairs
+    duals = solution.duals[:len(pairs)]
+    lp_stress = np.einsum("k,ka,kb->ab", duals / pairs.distances, pairs.vectors,
                           pairs.vectors)
-    lp_pressure = float(np.trace(lp_stress)) / d
-    volume_multiplier = float((lp.matrix.T @ solution.duals)[lp.n * d + strain_count(d) - 1])
+    lp_pressure, lp_anisotropy = anisotropy(lp_stress, periodic)
+    volume_multiplier = float((lp.matrix.T @ solution.duals)[lp.n_cols - 2])
     if not lp_pressure > 0:
         return "strain certificate: the last LP has no contact stress"
-    anisotropy = float(np.abs(lp_stress - lp_pressure * np.eye(d)).max()) / lp_pressure
     mismatch = abs(volume_multiplier - lp_pressure) / lp_pressure
-    final = float(np.trace(stress)) / d
-    final_anisotropy = (float(np.abs(stress - final * np.eye(d)).max()) / final if final > 0
-                        else float("nan"))
-    return (f"strain certificate of the last LP: stress anisotropy {anisotropy:.1e}, volume "
+    final_anisotropy = anisotropy(stress, periodic)[1]
+    return (f"strain certificate of the last LP: stress anisotropy {lp_anisotropy:.1e}, volume "
             f"multiplier = virial pressure to {mismatch:.1e}; final forces: stress "
             f"anisotropy {final_anisotropy:.1e}")
 
 
 def strict_category(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.ndarray,
-                    rattlers: np.ndarray, history: History) -> str | None:
+                    rattlers: np.ndarray, history: History,
+                    wall_contacts: np.ndarray | None = None) -> str | None:
     """The jamming category of the final packing: "strict" from the network's own
     certificate (`floppy_strict_rows`), else from the linear test of `calippso.categories`
     on the network and every other pair that touches (a note when it is not "strict");
-    None when that test could not decide (a note says why).
+    None when that test could not decide (a note says why). `forces` (M + K,) hold the
+    pair forces, then those of `wall_contacts` ((K, 2) particle, wall; none by default).
 
     The certificate: the forces are positive on every contact and in balance with an
     isotropic stress of positive pressure, so by Stiemke's theorem no first-order motion of
     the strict test opens a contact; when the strict rows have no floppy mode either, the
     packing is strictly jammed (docs/theory.md, Jamming categories).
     """
-    if np.all(forces > 0) and not floppy_strict_rows(packing, i, j, rattlers):
+    walls = np.zeros((0, 2), np.int64) if wall_contacts is None else wall_contacts
+    if np.all(forces > 0) and not floppy_strict_rows(packing, i, j, rattlers, walls):
         history.note("strictly jammed: positive forces with an isotropic stress, and no "
                      "floppy mode of the strict rows")
         return "strict"
@@ -293,10 +369,11 @@ def strict_category(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.n
     from .geometry.touching import touching_outside_network
 
     contacts = np.stack([i, j], axis=1)
-    touching = touching_outside_network(packing, contacts, rattlers)
+    touching = touching_outside_network(packing, contacts, rattlers, walls)
     every = JammingResult(packing=packing, contacts=np.concatenate([contacts, touching.pairs]),
                           forces=np.zeros(0), rattlers=rattlers, converged=False, status="",
-                          iterations=0)
+                          iterations=0,
+                          wall_contacts=np.concatenate([walls, touching.walls]))
     try:
         category = jamming_category(every, up_to="strict")
     except (RuntimeError, ValueError) as error:   # the test's LP failed, or a refusal
@@ -312,33 +389,45 @@ def strict_category(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.n
     return category.category
 
 
-def floppy_strict_rows(packing: Packing, i: np.ndarray, j: np.ndarray,
-                       rattlers: np.ndarray) -> bool:
-    """Whether the strict rows of the network (the contacts with the strain columns, and
-    the volume row) have a floppy mode: a motion of the stable particles (one pinned) and
-    the strain that keeps every row at zero. The smallest eigenvalue of AᵀA is zero, up to
-    `FLOPPY_EIGENVALUE` × its mean diagonal, exactly when one exists."""
+def floppy_strict_rows(packing: Packing, i: np.ndarray, j: np.ndarray, rattlers: np.ndarray,
+                       wall_contacts: np.ndarray) -> bool:
+    """Whether the strict rows of the network (the contacts with the strain columns of the
+    periodic axes, the wall contacts ((K, 2) particle, wall), and the volume row) have a
+    floppy mode: a motion of the stable particles (the container's zero modes pinned,
+    `calippso.certification.newton.pinned_coordinates`) and the strain that keeps every
+    row at zero. The smallest eigenvalue of AᵀA is zero, up to `FLOPPY_EIGENVALUE` × its
+    mean diagonal, exactly when one exists."""
     from scipy.sparse.linalg import eigsh
 
-    n, d = packing.n, packing.d
-    k = strain_count(d)
+    from .certification.newton import pinned_coordinates
+    from .geometry.walls import wall_rows_of
+
+    n, d, boundaries = packing.n, packing.d, packing.boundaries
+    k = strain_count(boundaries.n_periodic)
     stable = np.flatnonzero(~rattlers)
     column = np.full(n, -1, dtype=np.int64)
     column[stable] = d * np.arange(stable.size)
     vectors = packing.minimum_image(packing.positions[i] - packing.positions[j])
     distances = np.linalg.norm(vectors, axis=1)
     normals = vectors / distances[:, None]
-    m, n_moves = i.shape[0], d * stable.size
+    walls = wall_rows_of(packing.positions, packing.diameters, packing.box, wall_contacts[:, 0],
+                         wall_contacts[:, 1], boundaries.cylinder_axes)
+    m, n_walls, n_moves = i.shape[0], len(walls), d * stable.size
     axis = np.arange(d)
     rows = np.concatenate([np.repeat(np.arange(m), d), np.repeat(np.arange(m), d),
-                           np.repeat(np.arange(m), k), [m]])
+                           m + np.repeat(np.arange(n_walls), d),
+                           np.repeat(np.arange(m), k), [m + n_walls]])
     cols = np.concatenate([(column[i][:, None] + axis).ravel(),
                            (column[j][:, None] + axis).ravel(),
+                           (column[walls.particle][:, None] + axis).ravel(),
                            np.tile(n_moves + np.arange(k), m), [n_moves + k - 1]])
-    values = np.concatenate([normals.ravel(), -normals.ravel(),
-                             strain_coefficients(vectors, distances).ravel(), [-1.0]])
-    matrix = sp.csr_matrix((values, (rows, cols)), shape=(m + 1, n_moves + k))
-    free = np.setdiff1d(np.arange(n_moves + k), np.arange(d))    # the first stable pinned
+    values = np.concatenate([normals.ravel(), -normals.ravel(), walls.normals.ravel(),
+                             strain_coefficients(vectors, distances,
+                                                 boundaries.periodic).ravel(), [-1.0]])
+    matrix = sp.csr_matrix((values, (rows, cols)), shape=(m + n_walls + 1, n_moves + k))
+    pinned = pinned_coordinates(packing.positions, packing.box, ~rattlers, boundaries)
+    held = (column[:, None] + axis)[pinned]
+    free = np.setdiff1d(np.arange(n_moves + k), held)    # the container's zero modes
     stiffness = (matrix[:, free].T @ matrix[:, free]).tocsc()
     scale = float(stiffness.diagonal().mean())
     if free.size <= DENSE_STIFFNESS:

@@ -37,7 +37,7 @@ import numpy as np
 
 from .geometry.boundaries import Boundaries
 from .checkpoint import Checkpoint
-from .deformable import DEFORMABLE_NOTE, smallest_gap, strict_zero_modes
+from .deformable import DEFORMABLE_NOTE, check_strainable, smallest_gap, strict_zero_modes
 from .deformable import INITIAL_STEP_FLOOR as DEFORMABLE_STEP_FLOOR
 from .deformable import median_gap as deformable_median_gap
 from .history import History, StopReason
@@ -201,9 +201,7 @@ def _jam_deformable(packing, diameters, settings: JamSettings, callback, checkpo
     if not isinstance(packing, Packing):
         raise TypeError("jam(positions, diameters, box=...) needs the box sides: pass a "
                         "Packing with box='deformable'")
-    if not packing.boundaries.is_periodic:
-        raise ValueError("box='deformable' needs a periodic box; walls and cylinders stay "
-                         "where they are (use the fixed box)")
+    check_strainable(packing.boundaries)
     check_enough_particles(packing.n, packing.d)
     if settings.crossover == "auto":    # the strain columns are read from a vertex
         settings = settings.with_changes(crossover="on")
@@ -415,10 +413,14 @@ def _start(packing: Packing, settings: JamSettings,
     """
     boundaries = packing.boundaries
     history = History(packing.d, start, verbose=settings.verbose,
-                      zero_modes=strict_zero_modes(packing.d) if deformable
+                      zero_modes=strict_zero_modes(boundaries) if deformable
                       else boundaries.zero_modes)
     if deformable:
         history.note(DEFORMABLE_NOTE)
+        if hint is not None and not boundaries.is_periodic:
+            history.note("the network hint was not used: in a container the network holds "
+                         "wall contacts, which a hint of pairs does not give")
+            hint = None
     elif not boundaries.is_periodic:
         settings, hint = _in_a_container(settings, hint, boundaries, history)
     policy = SolverPolicy(settings, on_lp)
@@ -427,8 +429,8 @@ def _start(packing: Packing, settings: JamSettings,
     periodic = None if boundaries.is_periodic else boundaries.periodic
     diameters = packing.diameters / scale
     if deformable:
-        positions, cell = packing.positions / scale, packing.lattice / scale
-        deepest = smallest_gap(positions, diameters, cell)
+        positions, cell = packing.positions / scale, packing.search_cell / scale
+        deepest = smallest_gap(positions, diameters, cell, boundaries, box)
         if deepest < -settings.overlap_tolerance:
             raise ValueError(f"the input overlaps: the deepest relative gap is {deepest:.3e}, "
                              f"beyond overlap_tolerance {settings.overlap_tolerance:g}")

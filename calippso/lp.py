@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from .geometry.neighbors import NeighborSearch, Pairs
 from .geometry.walls import EMPTY_WALLS, WallRows, empty_walls, wall_rows_within
 
-__all__ = ["LinearProgram", "select_pairs", "select_walls", "build_lp"]
+__all__ = ["LinearProgram", "select_pairs", "select_walls", "build_lp", "cylinder_step_limit"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,8 +150,9 @@ def largest_safe_step(search: NeighborSearch, step_bound: float, boundaries=None
 
     Returns 0.0 when even a vanishing step would need pairs beyond half the box.
     """
-    if boundaries is not None and boundaries.cylinder_axes:
-        step_bound = min(step_bound, _cylinder_step_limit(search, boundaries))
+    if boundaries is not None:
+        step_bound = min(step_bound, cylinder_step_limit(search.positions, search.diameters,
+                                                         search.box, boundaries))
     half = search.half_period
     root_d = np.sqrt(search.d)
     for _ in range(60):
@@ -162,11 +163,14 @@ def largest_safe_step(search: NeighborSearch, step_bound: float, boundaries=None
     return 0.0
 
 
-def _cylinder_step_limit(search: NeighborSearch, boundaries) -> float:
+def cylinder_step_limit(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
+                        boundaries) -> float:
     """The largest b with b²/ρ ≤ δ/2 for every particle within a diameter of the cylinder
-    (+inf when none is): its LP row then keeps a positive distance δ − b²/ρ."""
-    near = wall_rows_within(search.positions, search.diameters, search.box, boundaries,
-                            0.0, 2.0)
+    (+inf when none is, or without a cylinder): its LP row then keeps a positive distance
+    δ − b²/ρ. Shapes: positions (N, d), diameters (N,), box (d,) the sides."""
+    if not boundaries.cylinder_axes:
+        return float("inf")
+    near = wall_rows_within(positions, diameters, box, boundaries, 0.0, 2.0)
     near = near.subset(near.curvature > 0)
     if not len(near):
         return float("inf")

@@ -209,9 +209,10 @@ class JammingResult:
         the periodic axes with walls (`Boundaries.zero_modes`)."""
         from .geometry.contacts import isostaticity_gap
 
-        zero_modes = self.packing.boundaries.zero_modes
-        if self.box_mode == "deformable":
-            zero_modes -= self.d * (self.d + 1) // 2 - 1   # the box's shape, at fixed volume
+        boundaries = self.packing.boundaries
+        zero_modes = boundaries.zero_modes
+        if self.box_mode == "deformable":   # the periodic axes' shape, at fixed volume
+            zero_modes -= boundaries.n_periodic * (boundaries.n_periodic + 1) // 2 - 1
         return isostaticity_gap(self.n_contacts, self.n_stable, self.d, zero_modes)
 
     @property
@@ -283,20 +284,30 @@ class JammingResult:
 
     @property
     def pressure(self) -> float:
-        """tr(`contact_stress`)/d, the virial pressure of the contact forces; NaN without a
-        stress."""
-        stress = self.contact_stress
-        return float("nan") if stress is None else float(np.trace(stress)) / self.d
+        """The virial pressure of the contact forces: tr(`contact_stress`)/d, over the
+        periodic axes in a container (a deformable run's; the walls carry the rest); NaN
+        without a stress."""
+        block = self._periodic_stress
+        return float("nan") if block is None else float(np.trace(block)) / block.shape[0]
 
     @property
     def stress_anisotropy(self) -> float:
-        """max |stress − p I| / p of `contact_stress`: zero up to round-off at a strictly
-        jammed point, a few per cent at a jamming point of a fixed box (N = 1024); NaN
-        without a stress."""
-        stress, pressure = self.contact_stress, self.pressure
-        if stress is None or not pressure > 0:
+        """max |stress − p I| / p of `contact_stress` (of its periodic axes in a container):
+        zero up to round-off at a strictly jammed point, a few per cent at a jamming point
+        of a fixed box (N = 1024); NaN without a stress."""
+        block, pressure = self._periodic_stress, self.pressure
+        if block is None or not pressure > 0:
             return float("nan")
-        return float(np.abs(stress - pressure * np.eye(self.d)).max() / pressure)
+        return float(np.abs(block - pressure * np.eye(block.shape[0])).max() / pressure)
+
+    @property
+    def _periodic_stress(self) -> np.ndarray | None:
+        """The block of `contact_stress` on the periodic axes, or None without a stress."""
+        stress = self.contact_stress
+        if stress is None:
+            return None
+        periodic = self.packing.periodic
+        return stress[np.ix_(periodic, periodic)]
 
     @property
     def rattler_fraction(self) -> float:

@@ -57,7 +57,7 @@ def _refusal(call: str, boundaries: Boundaries, d: int, box: str = "fixed",
     if call == "jam" and box == "deformable":
         if route != "lp":
             return "takes the LP route"
-        return None if periodic else "needs a periodic box"
+        return None if boundaries.periodic.any() else "needs a periodic axis"
     if call == "strict" and not boundaries.periodic.any():
         return "needs a periodic axis"
     if call == "write":

@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from calippso import Packing
+from calippso import Boundaries, Packing
 from calippso.io import read, write
 from calippso.geometry.periodic import (lattice_minimum_image, reduce_lattice,
                                         shortest_lattice_vector)
@@ -169,7 +169,8 @@ def assert_strictly_jammed(result) -> None:
 def test_strict_count_is_the_fixed_box_count_plus_the_box_shape():
     for d in range(2, 6):
         translations, shape_at_fixed_volume = d, d * (d + 1) // 2 - 1
-        assert strict_zero_modes(d) == translations - shape_at_fixed_volume
+        assert strict_zero_modes(Boundaries.all_periodic(d)) == (translations
+                                                                - shape_at_fixed_volume)
 
 
 @pytest.mark.parametrize("d", [2, 3])
@@ -178,6 +179,7 @@ def test_lp_rows_are_the_linearised_distances_with_the_strain_on_boundary_pairs_
     s'_i − s'_j + ε m (s' the displacements with their affine part, m the pair's lattice
     vector): the strain enters the rows of the pairs across the boundary, and no other."""
     from calippso.deformable import _images, strain_count, strain_matrix, strained_lp
+    from calippso.geometry.walls import empty_walls
     from calippso.geometry.sheared_search import sheared_pairs_within
 
     rng = np.random.default_rng(d)
@@ -192,10 +194,11 @@ def test_lp_rows_are_the_linearised_distances_with_the_strain_on_boundary_pairs_
     k = strain_count(d)
     pinned = np.zeros((n, d), dtype=bool)
     pinned[0] = True
-    lp = strained_lp(pairs, images, n, d, 0.05, 0.01, pinned)
+    periodic = Boundaries.all_periodic(d)
+    lp = strained_lp(pairs, images, empty_walls(d), n, 0.05, 0.01, pinned, periodic)
     moves, strain, gamma = rng.normal(size=(n, d)), rng.normal(size=k), 0.3
     variables = np.concatenate([moves.ravel(), strain, [gamma]])
-    change = (moves[pairs.i] - moves[pairs.j]) + images @ strain_matrix(strain, d).T
+    change = (moves[pairs.i] - moves[pairs.j]) + images @ strain_matrix(strain, periodic.periodic).T
     normals = pairs.vectors / pairs.distances[:, None]
     expected = (np.einsum("md,md->m", normals, change)
                 - gamma * pairs.sigma**2 / (2.0 * pairs.distances))
@@ -240,7 +243,8 @@ def test_a_random_packing_ends_strictly_jammed(d, n):
                                               seed=0).packing
     fixed = jam(start)
     assert jamming_category(fixed).category == "collective"   # isostatic: never strict
-    assert floppy_strict_rows(fixed.packing, *fixed.contacts.T, fixed.rattlers)
+    assert floppy_strict_rows(fixed.packing, *fixed.contacts.T, fixed.rattlers,
+                              fixed.wall_contacts)
     result = jam(start, box="deformable")
     assert_strictly_jammed(result)
     assert result.isostatic and result.isostaticity_gap == 0
@@ -267,11 +271,9 @@ def test_deformable_box_refuses_what_it_does_not_run(tmp_path):
         jam(packing, box="deformable", route="relaxed")
     with pytest.raises(ValueError, match="unknown box 'elastic'"):
         jam(packing, box="elastic")
-    from calippso import Boundaries
-
-    walled = Packing(packing.positions + [0.5, 0.0], packing.diameters,
-                     packing.box + [1.0, 0.0], Boundaries.walls(2, "x"))
-    with pytest.raises(ValueError, match="needs a periodic box"):
+    walled = Packing(packing.positions + [0.5, 0.5], packing.diameters,
+                     packing.box + [1.0, 1.0], Boundaries.walls(2, ["x", "y"]))
+    with pytest.raises(ValueError, match="needs a periodic axis"):
         jam(walled, box="deformable")
 
 

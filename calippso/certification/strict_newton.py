@@ -21,6 +21,12 @@ that their stress is isotropic, and y > 0 on every contact makes them dual feasi
 no other pair overlapping, the deformable LP there has the optimum u = 0, ε = 0, Γ = 1. A
 non-singular Jacobian leaves no floppy mode of the strict rows, so the packing is strictly
 jammed. `clear_rattlers` moves the rattlers that the strict point's small move overlaps.
+
+In a container the strain acts on the periodic axes alone (traceless on them: the volume
+row binds at a jamming point) and a contact of particle i with a wall adds the equation
+δ_w²/σ_w² = Γ of the fixed box (`calippso.certification.newton`), whose strain terms are zero
+(a wall's distance does not depend on the periodic axes); the container's zero modes are
+pinned (`calippso.certification.newton.pinned_coordinates`).
 """
 
 from __future__ import annotations
@@ -32,8 +38,11 @@ import scipy.sparse as sp
 
 from .newton import (CHORD_CONTRACTION, MAX_CORRECTION, MAX_ITERATIONS, MIN_FORCE_RATIO,
                      RESIDUAL_TOLERANCE, ROUNDOFF_RESIDUAL, STEP_TOLERANCE,
-                     contact_equations_jacobian, free_columns, self_stress)
+                     contact_equations_jacobian, free_columns, pinned_coordinates, self_stress)
+from ..deformable import strain_coefficients, strain_matrix
+from ..geometry.boundaries import Boundaries
 from ..geometry.periodic import lattice_wrap
+from ..geometry.walls import wall_rows_of
 from ..geometry.sheared_search import sheared_pairs_within
 from .sparse_lu import factorize
 
@@ -63,6 +72,8 @@ class StrictRefinement:
     forces : ndarray, shape (M,)
         Contact forces in the order of the contacts given, in the LP's normalisation
         (f = μ/2 with Σ μ_c σ_c²/(2|r_c|) = 1).
+    wall_forces : ndarray, shape (K,)
+        Forces of the wall contacts, in the order given, in the units of `forces`.
     iterations : int
         Corrections applied.
     factorizations : int
@@ -85,50 +96,45 @@ class StrictRefinement:
     sqrt_gamma_minus_1: float
     max_displacement: float
     residual: float
+    wall_forces: np.ndarray
 
     @property
     def positive(self) -> bool:
-        """Every force is positive, above `calippso.certification.newton.MIN_FORCE_RATIO` × the largest."""
-        return bool(self.forces.size == 0
-                    or self.forces.min() > MIN_FORCE_RATIO * self.forces.max())
+        """Every force (walls included) is positive, above
+        `calippso.certification.newton.MIN_FORCE_RATIO` × the largest."""
+        every = np.concatenate([self.forces, self.wall_forces])
+        return bool(every.size == 0 or every.min() > MIN_FORCE_RATIO * every.max())
 
 
-def strict_unknowns(n_stable: int, d: int) -> int:
-    """Unknowns of the strict contact equations: d (N_s − 1) displacements, the
-    d(d+1)/2 − 1 entries of a traceless symmetric strain, and Γ."""
-    return d * (n_stable - 1) + d * (d + 1) // 2
+def strict_unknowns(n_free: int, n_periodic: int) -> int:
+    """Unknowns of the strict contact equations: the `n_free` displacement coordinates
+    (d (N_s − 1) in a periodic box), the d_p(d_p+1)/2 − 1 entries of a traceless symmetric
+    strain of the `n_periodic` = d_p periodic axes, and Γ."""
+    return n_free + n_periodic * (n_periodic + 1) // 2
 
 
-def _strain_terms(vectors: np.ndarray) -> np.ndarray:
-    """rᵀ ε r for the traceless strain variables (diagonal entries ε_μμ, μ < d, with
-    ε_dd = −Σ ε_μμ, then the off-diagonal entries ε_μν, μ < ν), shape (M, d(d+1)/2 − 1)."""
-    d = vectors.shape[1]
-    squares = vectors**2
-    columns = [squares[:, a] - squares[:, d - 1] for a in range(d - 1)]
-    columns += [2.0 * vectors[:, a] * vectors[:, b] for a in range(d) for b in range(a + 1, d)]
-    return np.stack(columns, axis=1)
+def _strain_terms(vectors: np.ndarray, periodic: np.ndarray) -> np.ndarray:
+    """rᵀ ε r for the traceless strain variables of the `periodic` axes (those of
+    `calippso.deformable.strain_matrix` but the trace, held at zero), shape
+    (M, d_p(d_p+1)/2 − 1); a wall row's vector (zero on the periodic axes) has none."""
+    return strain_coefficients(vectors, np.ones(vectors.shape[0]), periodic)[:, :-1]
 
 
-def _strain_of(variables: np.ndarray, d: int) -> np.ndarray:
-    """The traceless symmetric strain, shape (d, d), from its variables (`_strain_terms`)."""
-    strain = np.zeros((d, d))
-    diagonal = variables[:d - 1]
-    strain[np.arange(d - 1), np.arange(d - 1)] = diagonal
-    strain[d - 1, d - 1] = -diagonal.sum()
-    upper = [(a, b) for a in range(d) for b in range(a + 1, d)]
-    for value, (a, b) in zip(variables[d - 1:], upper):
-        strain[a, b] = strain[b, a] = value
-    return strain
+def _strain_of(variables: np.ndarray, periodic: np.ndarray) -> np.ndarray:
+    """The traceless symmetric strain of the `periodic` axes, shape (d, d), from its
+    variables (`_strain_terms`); zero in the rows and columns of the other axes."""
+    return strain_matrix(np.append(variables, 0.0), periodic)
 
 
 def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_cols: np.ndarray,
-              j_cols: np.ndarray, n_moves: int) -> sp.csc_matrix:
+              j_cols: np.ndarray, n_moves: int, periodic: np.ndarray) -> sp.csc_matrix:
     """Jacobian of |r_c|²/σ_c² − Γ at the current configuration (module docstring), shape
-    (M, n_moves + d(d+1)/2): the fixed box's columns (`calippso.certification.newton`; `i_cols`, `j_cols`
-    (M, d) hold the displacement columns, −1 for the pinned particle) with the strain's
-    2 rᵀ ε r/σ² between the displacements and Γ."""
+    (M, n_moves + d_p(d_p+1)/2): the fixed box's columns (`calippso.certification.newton`;
+    `i_cols`, `j_cols` (M, d) hold the displacement columns, −1 for a pinned coordinate or
+    a wall) with the strain's 2 rᵀ ε r/σ² of the `periodic` axes between the
+    displacements and Γ."""
     m = vectors.shape[0]
-    strain = 2.0 * _strain_terms(vectors) * inverse_sigma2[:, None]
+    strain = 2.0 * _strain_terms(vectors, periodic) * inverse_sigma2[:, None]
     k = strain.shape[1]
     fixed_box = contact_equations_jacobian(vectors, inverse_sigma2, i_cols, j_cols,
                                            n_moves + k + 1)
@@ -139,8 +145,9 @@ def _jacobian(vectors: np.ndarray, inverse_sigma2: np.ndarray, i_cols: np.ndarra
 
 
 def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,
-                  i: np.ndarray, j: np.ndarray, vectors: np.ndarray,
-                  stable: np.ndarray) -> StrictRefinement | None:
+                  i: np.ndarray, j: np.ndarray, vectors: np.ndarray, stable: np.ndarray, *,
+                  wall_particle: np.ndarray | None = None, wall: np.ndarray | None = None,
+                  boundaries: Boundaries | None = None) -> StrictRefinement | None:
     """Solve the strict contact equations of a network and compute its forces.
 
     Chord steps: the Jacobian is factorised at the start and reused while the corrections
@@ -153,41 +160,60 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
         Centres (any units; the mean diameter is a good one).
     diameters : ndarray, shape (N,)
     matrix : ndarray, shape (d, d)
-        Box vectors as columns.
+        Box vectors as columns; in a container, its search cell
+        (`calippso.geometry.boundaries.Boundaries.search_cell`).
     i, j : ndarray, shape (M,), int
         The contacts, between stable particles.
     vectors : ndarray, shape (M, d)
         Their separations r_c = x_i − x_j (minimum image) at `positions`.
     stable : ndarray, shape (N,), bool
-        Non-rattlers; the first one is pinned.
+        Non-rattlers; the container's zero modes are pinned (the first one, in a periodic
+        box).
+    wall_particle, wall : ndarray, shape (K,), int, optional
+        Contacts of stable particles with the container's walls (`calippso.geometry.walls`
+        numbering); none by default.
+    boundaries : Boundaries, optional
+        The container; None: periodic along every axis.
 
     Returns
     -------
     StrictRefinement or None
         None when the network does not have the strict count, the Jacobian is singular or
         Newton does not converge. The caller certifies the rest: `StrictRefinement.positive`
-        and no overlap of other pairs.
+        and no overlap of other pairs (or crossing of walls).
     """
     n, d = positions.shape
-    n_stable = int(np.count_nonzero(stable))
-    m = i.shape[0]
-    if n_stable < 2 or m != strict_unknowns(n_stable, d):
-        return None
-    columns = free_columns(stable, d)
+    boundaries = Boundaries.all_periodic(d) if boundaries is None else boundaries
+    periodic = boundaries.periodic
+    wall_particle = np.zeros(0, np.int64) if wall_particle is None else wall_particle
+    wall = np.zeros(0, np.int64) if wall is None else wall
+    sides = np.diag(boundaries.box_cell(matrix))
+    columns = free_columns(stable, d, pinned_coordinates(positions, sides, stable, boundaries))
     free = columns >= 0
     n_moves = int(np.count_nonzero(free))
-    i_cols, j_cols = columns[i], columns[j]
-    sigma = 0.5 * (diameters[i] + diameters[j])
+    m = i.shape[0]
+    if (np.count_nonzero(stable) < 2
+            or m + wall_particle.shape[0] != strict_unknowns(n_moves, boundaries.n_periodic)):
+        return None
+    i_cols = np.concatenate([columns[i], columns[wall_particle]])
+    j_cols = np.concatenate([columns[j], np.full((wall.shape[0], d), -1, dtype=np.int64)])
+    sigma = np.concatenate([0.5 * (diameters[i] + diameters[j]), 0.5 * diameters[wall_particle]])
     inverse_sigma2 = 1.0 / sigma**2
     moved, box = positions.copy(), matrix.copy()
     image_shift = vectors - (positions[i] - positions[j])
+
+    def contact_vectors() -> np.ndarray:
+        return np.concatenate([moved[i] - moved[j] + image_shift, wall_rows_of(
+            moved, diameters, sides, wall_particle, wall, boundaries.cylinder_axes).vectors])
+
+    vectors = contact_vectors()
     gamma = float(np.mean(np.einsum("md,md->m", vectors, vectors) * inverse_sigma2))
 
     def residual_of(current: np.ndarray) -> np.ndarray:
         return np.einsum("md,md->m", current, current) * inverse_sigma2 - gamma
 
     def factors_at(current: np.ndarray):
-        jacobian = _jacobian(current, inverse_sigma2, i_cols, j_cols, n_moves)
+        jacobian = _jacobian(current, inverse_sigma2, i_cols, j_cols, n_moves, periodic)
         return factorize(jacobian, strict=False), jacobian
 
     factors, jacobian = factors_at(vectors)
@@ -199,7 +225,7 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
         correction = factors.solve(-residual)
         displacement = np.zeros((n, d))
         displacement[free] = correction[:n_moves]
-        deformation = np.eye(d) + _strain_of(correction[n_moves:-1], d)
+        deformation = np.eye(d) + _strain_of(correction[n_moves:-1], periodic)
         largest = float(np.abs(correction[:-1]).max(initial=0.0))
         if not (np.all(np.isfinite(correction)) and largest <= MAX_CORRECTION):
             return None
@@ -207,7 +233,7 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
         box = deformation @ box
         image_shift = image_shift @ deformation.T
         gamma += float(correction[-1])
-        vectors = moved[i] - moved[j] + image_shift
+        vectors = contact_vectors()
         residual = residual_of(vectors)
         if largest < STEP_TOLERANCE:
             break
@@ -225,7 +251,8 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
     worst = float(np.abs(residual).max())
     if worst > RESIDUAL_TOLERANCE or gamma <= 0:
         return None
-    stress = self_stress(factors, _jacobian(vectors, inverse_sigma2, i_cols, j_cols, n_moves))
+    stress = self_stress(factors, _jacobian(vectors, inverse_sigma2, i_cols, j_cols, n_moves,
+                                            periodic))
     if stress is None:
         return None
     distances = np.sqrt(np.einsum("md,md->m", vectors, vectors))
@@ -234,10 +261,9 @@ def refine_strict(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarr
     travel = float(np.abs(moved[stable] - positions[stable]).max(initial=0.0))
     return StrictRefinement(
         positions=lattice_wrap(moved, box), matrix=box, diameters=diameters * np.sqrt(gamma),
-        forces=forces, iterations=iteration, factorizations=factorizations,
+        forces=forces[:m], iterations=iteration, factorizations=factorizations,
         sqrt_gamma_minus_1=float(np.sqrt(gamma) - 1.0), max_displacement=travel,
-        residual=worst)
-
+        residual=worst, wall_forces=forces[m:])
 
 
 def clear_rattlers(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarray,

@@ -22,7 +22,7 @@ from math import pi
 import numpy as np
 
 __all__ = ["Boundaries", "KINDS", "PERIODIC", "WALLS", "CYLINDER", "INSIDE_TOLERANCE",
-           "AXIS_NAMES"]
+           "AXIS_NAMES", "BOUNDED_PADDING"]
 
 PERIODIC = "periodic"
 WALLS = "walls"
@@ -32,6 +32,11 @@ KINDS = (PERIODIC, WALLS, CYLINDER)
 #: A particle may cross its container's wall by at most this fraction of its diameter
 #: (round-off); more is refused as a particle outside the container.
 INSIDE_TOLERANCE = 1e-9
+#: A box matrix in a container is padded along its bounded axes by this factor for the
+#: lattice searches (`Boundaries.search_cell`): a centre lies within [0, L] there, so no
+#: pair is closer than (BOUNDED_PADDING − 1) L through the padded axis, and no image across
+#: it is ever found.
+BOUNDED_PADDING = 3.0
 #: Names of the first axes, for messages (further axes are numbered).
 AXIS_NAMES = ("x", "y", "z", "w")
 
@@ -156,6 +161,32 @@ class Boundaries:
         """Rigid motions that leave the container unchanged: the translations along the
         periodic axes, plus the rotation about a cylinder's axis."""
         return self.n_periodic + (1 if self.cylinder_axes else 0)
+
+    def check_block_matrix(self, matrix: np.ndarray) -> None:
+        """Raise ValueError (one line) unless the box `matrix` (shape (d, d), box vectors as
+        columns) keeps every bounded axis apart: its off-diagonal entries in the rows and
+        columns of the walls' and the cylinder's axes are zero, so that a shear of the
+        periodic axes never tilts a wall."""
+        bounded = ~self.periodic
+        off = ~np.eye(self.d, dtype=bool) & (bounded[:, None] | bounded[None, :])
+        if np.any(matrix[off] != 0.0):
+            raise ValueError(f"a sheared box in a container ({self.describe()}) may shear its "
+                             f"periodic axes only: the walls' axes must stay orthogonal")
+
+    def search_cell(self, matrix: np.ndarray) -> np.ndarray:
+        """The box `matrix` (shape (d, d), columns the box vectors, bounded axes apart) with
+        every bounded axis's vector stretched by `BOUNDED_PADDING`: the lattice whose
+        minimum image, wrap and pair search (`calippso.geometry.periodic`,
+        `calippso.geometry.sheared_search`) act along the periodic axes alone."""
+        padded = np.array(matrix, dtype=np.float64)
+        padded[:, ~self.periodic] *= BOUNDED_PADDING
+        return padded
+
+    def box_cell(self, cell: np.ndarray) -> np.ndarray:
+        """The box matrix of a `search_cell` (its inverse), shape (d, d)."""
+        matrix = np.array(cell, dtype=np.float64)
+        matrix[:, ~self.periodic] /= BOUNDED_PADDING
+        return matrix
 
     def describe(self) -> str:
         """For messages and reports, e.g. "walls in x, y; periodic in z"."""

@@ -137,7 +137,7 @@ class Packing:
         object.__setattr__(self, "box_matrix", box_matrix)
         periodic_box = box[boundaries.periodic]
         if box_matrix is not None:
-            shortest = shortest_lattice_vector(box_matrix)
+            shortest = shortest_lattice_vector(boundaries.search_cell(box_matrix))
             if diameters.max() >= 0.5 * shortest:
                 raise ValueError(
                     f"box too small: the largest diameter {diameters.max():g} is not below "
@@ -164,9 +164,7 @@ class Packing:
         matrix = _as_float_array(self.box_matrix, "box_matrix", 2)
         if matrix.shape != (d, d):
             raise ValueError(f"box_matrix must have shape ({d}, {d}), got {matrix.shape}")
-        if not boundaries.is_periodic:
-            raise ValueError("a sheared box (box_matrix) is periodic along every axis; "
-                             "walls and cylinders need a rectangular box")
+        boundaries.check_block_matrix(matrix)
         if np.any(np.tril(matrix, -1) != 0.0):
             raise ValueError("box_matrix must be upper triangular (box vectors as columns); "
                              "Packing.sheared rotates any box matrix into that form")
@@ -179,8 +177,10 @@ class Packing:
         return matrix
 
     @classmethod
-    def sheared(cls, positions, diameters, matrix) -> "Packing":
-        """A packing in a sheared periodic box given by any box matrix.
+    def sheared(cls, positions, diameters, matrix,
+                boundaries: Boundaries | None = None) -> "Packing":
+        """A packing in a sheared periodic box given by any box matrix (in a container, one
+        whose bounded axes stay apart, `Boundaries.check_block_matrix`).
 
         Parameters
         ----------
@@ -189,6 +189,8 @@ class Packing:
         diameters : array_like, shape (N,)
         matrix : array_like, shape (d, d)
             Box vectors as columns, det > 0 (length units).
+        boundaries : Boundaries, optional
+            The container; None: periodic along every axis. Only its periodic axes rotate.
 
         Returns
         -------
@@ -201,13 +203,19 @@ class Packing:
         if matrix.shape[0] != matrix.shape[1] or np.linalg.det(matrix) <= 0:
             raise ValueError(f"the box matrix must be square with det > 0, got shape "
                              f"{matrix.shape}")
-        triangular, rotation = triangular_box(matrix)
-        triangular = np.triu(triangular)
+        boundaries = Boundaries.all_periodic(matrix.shape[0]) if boundaries is None else boundaries
+        boundaries.check_block_matrix(matrix)
+        periodic = np.flatnonzero(boundaries.periodic)
+        block, block_rotation = triangular_box(matrix[np.ix_(periodic, periodic)])
+        triangular, rotation = matrix.copy(), np.eye(matrix.shape[0])
+        triangular[np.ix_(periodic, periodic)] = np.triu(block)
+        rotation[np.ix_(periodic, periodic)] = block_rotation
         # tilts at the round-off of the rotation are no shear
         roundoff = np.triu(np.abs(triangular) < SHEAR_ROUNDOFF * np.diag(triangular).max(), 1)
         triangular[roundoff] = 0.0
         rotated = np.asarray(positions, dtype=np.float64) @ rotation
-        return cls(rotated, diameters, np.diag(triangular).copy(), None, triangular)
+        return cls(rotated, diameters, np.diag(triangular).copy(),
+                   None if boundaries.is_periodic else boundaries, triangular)
 
     @property
     def is_sheared(self) -> bool:
@@ -220,10 +228,16 @@ class Packing:
         rectangular box."""
         return np.diag(self.box) if self.box_matrix is None else self.box_matrix
 
+    @property
+    def search_cell(self) -> np.ndarray:
+        """`lattice` with its bounded axes padded (`Boundaries.search_cell`): the lattice of
+        the minimum image and the pair search, shape (d, d)."""
+        return self.boundaries.search_cell(self.lattice)
+
     def minimum_image(self, delta: np.ndarray) -> np.ndarray:
         """The minimum image of separations, shape (..., d), in this box (sheared or not)."""
         if self.box_matrix is not None:
-            return lattice_minimum_image(delta, self.box_matrix)
+            return lattice_minimum_image(delta, self.search_cell)
         periodic = self.periodic
         return minimum_image(delta, self.box, None if periodic.all() else periodic)
 
@@ -262,7 +276,7 @@ class Packing:
     def wrapped(self) -> "Packing":
         """The same packing with every periodic coordinate inside [0, L)."""
         if self.box_matrix is not None:
-            return Packing(lattice_wrap(self.positions, self.box_matrix), self.diameters,
+            return Packing(lattice_wrap(self.positions, self.search_cell), self.diameters,
                            self.box, self.boundaries, self.box_matrix)
         return Packing(wrap(self.positions, self.box, self.periodic), self.diameters, self.box,
                        self.boundaries)

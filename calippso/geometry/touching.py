@@ -83,7 +83,7 @@ def touching_outside_network(packing: Packing, contacts: np.ndarray, rattlers: n
     if packing.box_matrix is not None:
         from .sheared_search import sheared_pairs_within
 
-        close = sheared_pairs_within(packing.positions, packing.diameters, packing.box_matrix,
+        close = sheared_pairs_within(packing.positions, packing.diameters, packing.search_cell,
                                      cutoff)
     else:
         search = NeighborSearch(packing.positions, packing.diameters, packing.box,

@@ -55,7 +55,9 @@ class LoopState:
         (`calippso.stages.wall_kick`).
     cell : ndarray, shape (d, d), or None
         The box vectors as columns in a deformable box (`calippso.deformable`), which the
-        LPs strain; None when the box is the run's fixed one.
+        LPs strain (in a container, its search cell: the bounded axes padded,
+        `calippso.geometry.boundaries.Boundaries.search_cell`); None when the box is the
+        run's fixed one.
     """
 
     positions: np.ndarray
@@ -146,7 +148,8 @@ class Run:
         box is deformable)."""
         if state.cell is not None:
             return Packing.sheared(state.positions * self.scale, state.diameters * self.scale,
-                                   state.cell * self.scale)
+                                   self.boundaries.box_cell(state.cell) * self.scale,
+                                   self.boundaries)
         return self.packing_of(state.positions, state.diameters)
 
     def packing_of(self, positions: np.ndarray, diameters: np.ndarray) -> Packing:

@@ -5,10 +5,13 @@ A network certified by the strict Newton stage keeps its forces when they balanc
 final geometry. Otherwise the last LP's network and forces are projected onto the forces in
 equilibrium with an isotropic stress at the final positions (`balanced_network`), and a run
 that converged is tested for strict jamming (`calippso.deformable.strict_category`). Round-off
-overlaps are shrunk away first; forces are scaled to mean 1.
+overlaps (with walls too, in a container) are shrunk away first; forces are scaled to mean 1,
+the wall contacts' included.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -19,6 +22,7 @@ from scipy.sparse.linalg import lsmr
 from ..certification.strict_newton import NEAR_CONTACT
 from ..deformable import (certificate_note, contact_stress, smallest_gap, strain_coefficients,
                           strict_category, strict_zero_modes)
+from ..geometry.walls import wall_equilibrium_columns, wall_rows_of
 from ..geometry.contact_network import (GEOMETRIC_CONTACT_GAP, ROUNDOFF_SHRINK_MARGIN,
                                         ContactNetwork)
 from ..geometry.contacts import force_balance, isostaticity_gap
@@ -51,32 +55,31 @@ def strict_finish(run: Run, state: LoopState, network: ContactNetwork, reason: S
     """The result of a deformable run that stopped at `state` with `network`, for `reason`;
     `last` is the last LP (its network is the fallback of a Newton network whose forces do
     not balance at the final geometry, its duals the strain certificate of the notes)."""
-    history, settings = run.history, run.settings
-    gap = smallest_gap(state.positions, state.diameters, state.cell)
+    history, settings, boundaries = run.history, run.settings, run.boundaries
+    gap = smallest_gap(state.positions, state.diameters, state.cell, boundaries, run.box)
     diameters = state.diameters
     if gap < 0:
         diameters = diameters * (1.0 + gap) * (1.0 - ROUNDOFF_SHRINK_MARGIN)
         history.note(f"diameters scaled by 1 - {-gap:.1e} to remove round-off overlaps")
     packing = Packing.sheared(state.positions * run.scale, diameters * run.scale,
-                              state.cell * run.scale)
+                              boundaries.box_cell(state.cell) * run.scale, boundaries)
     certified = False
     if not network.from_lp:
-        i, j, rattlers = network.i, network.j, network.rattlers
-        forces = network.forces / network.forces.mean()
-        balance = _balance_of(packing, i, j, forces, rattlers)
+        final = _Forces.of(network)
+        balance = _balance_of(packing, final)
         certified = balance <= settings.balance_tolerance
         if reason.jammed:
             reason = reason if certified else StopReason.CONVERGED
     if not certified:
         fallback = network if last is None or network.from_lp else last.network()
-        i, j, forces, rattlers, balance = balanced_network(packing, fallback.i, fallback.j,
-                                                           fallback.forces, history)
+        final, balance = balanced_network(packing, _Forces.of(fallback), history)
+    i, j, forces = final.i, final.j, final.forces
     vectors = packing.minimum_image(packing.positions[i] - packing.positions[j])
     stress = contact_stress(vectors, forces, packing.volume)
-    n_stable = int(rattlers.size - rattlers.sum())
-    gap_count = isostaticity_gap(i.shape[0], n_stable, run.d, strict_zero_modes(run.d))
+    n_stable = int(final.rattlers.size - final.rattlers.sum())
+    gap_count = isostaticity_gap(final.n_contacts, n_stable, run.d, strict_zero_modes(boundaries))
     if last is not None:
-        history.note(certificate_note(last.lp, last.solution, stress))
+        history.note(certificate_note(last.lp, last.solution, stress, boundaries.periodic))
     category = None
     if certified:
         category = "strict"
@@ -86,99 +89,162 @@ def strict_finish(run: Run, state: LoopState, network: ContactNetwork, reason: S
         if n_stable == 0 or gap_count < 0 or balance > settings.balance_tolerance:
             reason = StopReason.NOT_RIGID
         else:
-            category = strict_category(packing, i, j, forces, rattlers, history)
+            category = strict_category(packing, i, j, final.every_force, final.rattlers,
+                                       history, final.walls)
             if category is not None and category != "strict":
                 reason = StopReason.NOT_RIGID
     notes = final_notes(run, reason)
     return JammingResult(
         packing=packing, contacts=np.stack([i, j], axis=1).astype(np.int64),
-        forces=forces, rattlers=rattlers, converged=reason.jammed,
+        forces=forces, rattlers=final.rattlers, converged=reason.jammed,
         status=status_sentence(reason, history.lps_solved, history.last_step(), n_stable,
                                gap_count, notes),
         iterations=history.lps_solved, history=history.to_array(),
         wall_time=history.elapsed(), force_balance=balance,
         dual_normalization=np.nan if last is None else last.normalization,
         solver=network.solver, stop_reason=reason, notes=notes, box_mode="deformable",
-        stress=stress, category=category)
+        stress=stress, category=category, wall_contacts=final.walls,
+        wall_forces=final.wall_forces)
 
 
-def balanced_network(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.ndarray,
-                     history: History):
+@dataclass(frozen=True)
+class _Forces:
+    """A contact network with its forces: pairs (i, j, forces, shape (M,)), wall contacts
+    (`walls` (K, 2) particle, wall; `wall_forces` (K,)) and rattlers (N,), bool."""
+
+    i: np.ndarray
+    j: np.ndarray
+    forces: np.ndarray
+    walls: np.ndarray
+    wall_forces: np.ndarray
+    rattlers: np.ndarray
+
+    @classmethod
+    def of(cls, network: ContactNetwork) -> "_Forces":
+        """The network's contacts with its forces scaled to mean 1 (wall forces included)."""
+        return cls(network.i, network.j, network.forces,
+                   np.stack([network.wall_particle, network.wall], axis=1).astype(np.int64),
+                   network.wall_forces, network.rattlers).normalized()
+
+    @property
+    def n_contacts(self) -> int:
+        """Contacts with particles and walls."""
+        return int(self.i.shape[0] + self.walls.shape[0])
+
+    @property
+    def every_force(self) -> np.ndarray:
+        """The pair forces, then the wall forces, shape (M + K,)."""
+        return np.concatenate([self.forces, self.wall_forces])
+
+    def normalized(self) -> "_Forces":
+        """The forces scaled to mean 1 (unchanged without a contact)."""
+        every = self.every_force
+        mean = float(every.mean()) if every.size else 1.0
+        return self.with_forces(every / (mean or 1.0))
+
+    def with_forces(self, every: np.ndarray) -> "_Forces":
+        """These contacts with the forces `every` (pairs, then walls), shape (M + K,)."""
+        m = self.i.shape[0]
+        return _Forces(self.i, self.j, every[:m], self.walls, every[m:], self.rattlers)
+
+    def subset(self, kept: np.ndarray, wall_kept: np.ndarray,
+               rattlers: np.ndarray) -> "_Forces":
+        """The contacts kept (boolean masks over pairs and walls), with new rattlers."""
+        return _Forces(self.i[kept], self.j[kept], self.forces[kept], self.walls[wall_kept],
+                       self.wall_forces[wall_kept], rattlers)
+
+
+def balanced_network(packing: Packing, network: _Forces,
+                     history: History) -> tuple[_Forces, float]:
     """The contact network and forces at the final geometry.
 
     The last LP's contacts and forces, projected onto the forces in equilibrium with an
-    isotropic stress at the final positions (`_balanced_forces`). At a degenerate optimum
-    (a crystal: the vertex puts its duals on too few rows, the network looks hypostatic),
-    the touching pairs (h < `GEOMETRIC_CONTACT_GAP`) with the balanced forces nearest to
-    uniform replace it, when those are all positive.
+    isotropic stress (on the periodic axes) at the final positions (`_balanced_forces`). At
+    a degenerate optimum (a crystal: the vertex puts its duals on too few rows, the network
+    looks hypostatic), the touching pairs (h < `GEOMETRIC_CONTACT_GAP`) with the balanced
+    forces nearest to uniform replace it, when those are all positive (in a periodic box:
+    a container keeps the LP's network).
 
     Returns
     -------
-    (i, j, forces of mean 1, rattlers, force balance)
+    (_Forces, float)
+        The network with forces of mean 1, and its force balance.
     """
     n, d = packing.n, packing.d
-    rattlers, kept = remove_rattlers(n, d, i, j)
-    i, j, forces = i[kept], j[kept], forces[kept]
-    balanced = _balanced_forces(packing, i, j, forces, rattlers)
+    rattlers, kept = remove_rattlers(n, d, network.i, network.j, network.walls[:, 0])
+    network = network.subset(kept, ~rattlers[network.walls[:, 0]], rattlers)
+    balanced = _balanced_forces(packing, network)
     n_stable = int(n - rattlers.sum())
-    if n_stable == 0 or isostaticity_gap(i.shape[0], n_stable, d, strict_zero_modes(d)) < 0:
-        close = sheared_pairs_within(packing.positions, packing.diameters, packing.lattice,
+    zero_modes = strict_zero_modes(packing.boundaries)
+    if packing.boundaries.is_periodic and (
+            n_stable == 0 or isostaticity_gap(network.n_contacts, n_stable, d, zero_modes) < 0):
+        close = sheared_pairs_within(packing.positions, packing.diameters, packing.search_cell,
                                      float(packing.diameters.max()) * (1.0 + NEAR_CONTACT))
         touching = close.subset(close.gaps < GEOMETRIC_CONTACT_GAP)
         t_rattlers, t_kept = remove_rattlers(n, d, touching.i, touching.j)
         ti, tj = touching.i[t_kept], touching.j[t_kept]
-        if (int(n - t_rattlers.sum()), ti.shape[0]) > (n_stable, i.shape[0]):
-            uniform = _balanced_forces(packing, ti, tj, np.ones(ti.shape[0]), t_rattlers)
+        if (int(n - t_rattlers.sum()), ti.shape[0]) > (n_stable, network.i.shape[0]):
+            candidate = _Forces(ti, tj, np.ones(ti.shape[0]), network.walls[:0],
+                                network.wall_forces[:0], t_rattlers)
+            uniform = _balanced_forces(packing, candidate)
             if uniform is not None:
                 history.note(f"contacts taken from the touching pairs (h < "
                              f"{GEOMETRIC_CONTACT_GAP:g}): the LP duals are degenerate here; "
                              f"forces are the balanced, isotropic ones nearest to uniform")
-                i, j, rattlers, balanced = ti, tj, t_rattlers, uniform
+                network, balanced = candidate, uniform
     if balanced is None:
-        mean = float(forces.mean()) if forces.size else 1.0
-        balance = _balance_of(packing, i, j, forces, rattlers)
-        if i.shape[0]:
+        network = network.normalized()
+        balance = _balance_of(packing, network)
+        if network.n_contacts:
             history.note(f"no positive forces balance the network with an isotropic stress at "
                          f"the final positions: the last LP's forces are kept (force balance "
                          f"{balance:.1e}), no certificate")
-        return i, j, forces / mean, rattlers, balance
-    forces = balanced / balanced.mean()
-    return i, j, forces, rattlers, _balance_of(packing, i, j, forces, rattlers)
+        return network, balance
+    network = network.with_forces(balanced).normalized()
+    return network, _balance_of(packing, network)
 
 
-def _equilibrium(packing: Packing, i: np.ndarray, j: np.ndarray) -> tuple[sp.csr_matrix,
-                                                                          np.ndarray]:
-    """The matrix whose null space holds the forces f in equilibrium on every particle with
-    an isotropic stress: d rows per particle (Σ f n), then the deviatoric stress (the strain
-    columns but the trace, `calippso.deformable.strain_coefficients`); and the unit
-    normals."""
-    n, d = packing.n, packing.d
+def _equilibrium(packing: Packing, network: _Forces) -> tuple[sp.csr_matrix, np.ndarray,
+                                                                 np.ndarray]:
+    """The matrix whose null space holds the forces f (pairs, then walls) in equilibrium on
+    every particle with an isotropic stress on the periodic axes: d rows per particle
+    (Σ f n, walls' inward normals included), then the deviatoric stress of the periodic
+    axes (the strain columns but the trace, `calippso.deformable.strain_coefficients`);
+    and the unit normals of the pairs and of the walls."""
+    n, d, boundaries = packing.n, packing.d, packing.boundaries
+    i, j = network.i, network.j
     vectors = packing.minimum_image(packing.positions[i] - packing.positions[j])
     distances = np.linalg.norm(vectors, axis=1)
     normals = vectors / distances[:, None]
+    walls = wall_rows_of(packing.positions, packing.diameters, packing.box, network.walls[:, 0],
+                         network.walls[:, 1], boundaries.cylinder_axes)
     m = i.shape[0]
     coordinate = np.arange(d)
     rows = np.concatenate([(i[:, None] * d + coordinate).ravel(),
                            (j[:, None] * d + coordinate).ravel()])
     columns = np.concatenate([np.repeat(np.arange(m), d)] * 2)
     values = np.concatenate([normals.ravel(), -normals.ravel()])
-    balance = sp.csr_matrix((values, (rows, columns)), shape=(n * d, m))
-    deviatoric = sp.csr_matrix(strain_coefficients(vectors, distances)[:, :-1].T)
-    return sp.vstack([balance, deviatoric]).tocsr(), normals
+    balance = sp.hstack([sp.csr_matrix((values, (rows, columns)), shape=(n * d, m)),
+                         wall_equilibrium_columns(n, walls.particle, walls.normals)])
+    deviatoric = strain_coefficients(vectors, distances, boundaries.periodic)[:, :-1].T
+    stress_rows = sp.hstack([sp.csr_matrix(deviatoric),
+                             sp.csr_matrix((deviatoric.shape[0], len(walls)))])
+    return sp.vstack([balance, stress_rows]).tocsr(), normals, walls.normals
 
 
-def _balanced_forces(packing: Packing, i, j, forces, rattlers) -> np.ndarray | None:
-    """Positive forces in equilibrium with an isotropic stress at the packing's geometry:
-    those nearest to `forces` (least squares), or, when one of those is not positive, the
-    point towards the forces whose smallest is largest (an LP) where the smallest force
-    reaches half that largest value; None when no positive such forces exist."""
-    if not i.shape[0]:
+def _balanced_forces(packing: Packing, network: _Forces) -> np.ndarray | None:
+    """Positive forces (pairs, then walls) in equilibrium with an isotropic stress at the
+    packing's geometry: those nearest to the network's (least squares), or, when one of
+    those is not positive, the point towards the forces whose smallest is largest (an LP)
+    where the smallest force reaches half that largest value; None when no positive such
+    forces exist."""
+    if not network.n_contacts:
         return None
-    matrix, _ = _equilibrium(packing, i, j)
-    nearest = _projected(matrix, forces)
+    matrix, _, _ = _equilibrium(packing, network)
+    nearest = _projected(matrix, network.every_force)
     if nearest.min() > 0:
         return nearest
-    m = i.shape[0]
+    m = network.n_contacts
     # variables (f, t): maximise t subject to A f = 0, Σ f = m, f ≥ t
     equalities = sp.vstack([sp.hstack([matrix, sp.csr_matrix((matrix.shape[0], 1))]),
                             sp.csr_matrix(np.append(np.ones(m), 0.0)[None, :])]).tocsr()
@@ -219,9 +285,12 @@ def _projected(matrix: sp.csr_matrix, forces: np.ndarray) -> np.ndarray:
     return best
 
 
-def _balance_of(packing: Packing, i, j, forces, rattlers) -> float:
-    """max over stable particles of |Σ f n| / mean force, at the packing's geometry."""
-    if not i.shape[0]:
+def _balance_of(packing: Packing, network: _Forces) -> float:
+    """max over stable particles of |Σ f n| (walls included) / mean force, at the packing's
+    geometry."""
+    if not network.n_contacts:
         return 0.0
-    _, normals = _equilibrium(packing, i, j)
-    return force_balance(packing.n, i, j, normals, forces, ~rattlers)
+    _, normals, wall_normals = _equilibrium(packing, network)
+    return force_balance(packing.n, network.i, network.j, normals, network.forces,
+                         ~network.rattlers,
+                         (network.walls[:, 0], wall_normals, network.wall_forces))

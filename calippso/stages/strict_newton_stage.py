@@ -7,7 +7,8 @@ beyond the LPs' feasibility round-off, and no rattler overlapped beyond it once 
 rattlers that the small move overlaps are moved out (`clear_rattlers`). The stage of the
 loop is `calippso.stages.newton_stage.newton_or_pivots`, which calls this one when the box
 is deformable; `strict_network_first` tries the caller's network hint the same way before
-the first LP (the network-first stage of a deformable box).
+the first LP (the network-first stage of a deformable box). In a container the network's
+wall contacts are equations too, and no particle may cross a wall that is no contact.
 """
 
 from __future__ import annotations
@@ -18,19 +19,22 @@ from dataclasses import replace
 import numpy as np
 
 from ..certification.strict_newton import clear_rattlers, refine_strict
+from ..deformable import container_walls
 from ..geometry.contact_network import ContactNetwork
 from ..geometry.contacts import isostaticity_gap
 from ..geometry.periodic import lattice_minimum_image
 from ..geometry.rattlers import remove_rattlers
+from ..geometry.walls import wall_ids
 from .state import LoopState, Run
 
 __all__ = ["strict_newton", "strict_network_first", "NOT_STRICT", "RATTLER_OVERLAPPED",
-           "STABLE_OVERLAP"]
+           "STABLE_OVERLAP", "WALL_CROSSED"]
 
 #: Why the stage refuses a network.
 NOT_STRICT = "no strictly jammed point with positive forces"
 RATTLER_OVERLAPPED = "a rattler stays overlapped at the strict point"
 STABLE_OVERLAP = "two stable particles that are no contact overlap at the strict point"
+WALL_CROSSED = "a particle crosses a wall that is no contact at the strict point"
 
 
 def strict_newton(run: Run, state: LoopState, network: ContactNetwork, tried_before: str):
@@ -54,9 +58,12 @@ def strict_newton(run: Run, state: LoopState, network: ContactNetwork, tried_bef
     i, j, rattlers = network.i, network.j, network.rattlers
     vectors = lattice_minimum_image(state.positions[i] - state.positions[j], state.cell)
     refined = refine_strict(state.positions, state.diameters, state.cell, i, j, vectors,
-                            ~rattlers)
+                            ~rattlers, wall_particle=network.wall_particle, wall=network.wall,
+                            boundaries=run.boundaries)
     if refined is None or not refined.positive:
         return state.refused(key), None, NOT_STRICT
+    if _crosses_a_wall(run, refined.positions, refined.diameters, network):
+        return state.refused(key), None, WALL_CROSSED
     n = rattlers.size
     keys = np.sort(np.minimum(i, j) * n + np.maximum(i, j))
     moved, stable_overlap = clear_rattlers(refined.positions, refined.diameters,
@@ -77,7 +84,19 @@ def strict_newton(run: Run, state: LoopState, network: ContactNetwork, tried_bef
                  f"factorisation(s), residual {refined.residual:.0e}) after "
                  f"{history.lps_solved} LPs")
     return state, ContactNetwork(i, j, refined.forces, rattlers, float("nan"), network.solver,
-                                 from_lp=False), ""
+                                 from_lp=False, wall_particle=network.wall_particle,
+                                 wall=network.wall, wall_forces=refined.wall_forces), ""
+
+
+def _crosses_a_wall(run: Run, positions: np.ndarray, diameters: np.ndarray,
+                    network: ContactNetwork) -> bool:
+    """Whether a particle crosses a wall that is no contact of `network` beyond the LPs'
+    feasibility round-off (`overlap_tolerance`), at `positions` (N, d) and `diameters`
+    (N,); False in a periodic box."""
+    near = container_walls(positions, diameters, run.boundaries, run.box)
+    n_walls = wall_ids(run.d)
+    outside = ~np.isin(near.keys(n_walls), network.wall_particle * n_walls + network.wall)
+    return bool(np.any(outside & (near.gaps < -run.settings.overlap_tolerance)))
 
 
 def strict_network_first(run: Run, state: LoopState, hint: np.ndarray | None,

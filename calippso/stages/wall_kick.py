@@ -7,7 +7,8 @@ second order, and Γ can then grow: not a jamming point. `kick_off_walls` moves 
 out of their layer (`calippso.geometry.walls.out_of_layer_moves`) and the loop goes on. A floppy mode
 elsewhere (a wall row is linear, so the LP sees no second order at a wall) is left to the
 LPs: the loop goes on from a fresh step bound and no warm start, which lets them move along
-the mode far enough for its second order to open contacts.
+the mode far enough for its second order to open contacts. In a deformable box the layers
+are looked for while its cell is rectangular; in a sheared one only the fresh bound is given.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 
 from ..history import Record
 from ..geometry.contact_network import ContactNetwork
+from ..geometry.neighbors import NeighborSearch
 from ..geometry.walls import out_of_layer_moves
 from .state import LoopState, Run
 
@@ -59,8 +61,9 @@ def kick_off_walls(run: Run, state: LoopState, record: Record,
     what = ("converged" if record.sqrt_gamma_minus_1 < run.settings.tol_gamma
             else f"grew sqrt(Gamma) by {record.sqrt_gamma_minus_1:.1e}")
     axes = run.boundaries.wall_axes
-    moved = None if not axes else out_of_layer_moves(
-        state.search, axes, network.wall_particle, WALL_KICK_STEP, WALL_KICK_TOUCHING,
+    search = _search_of(run, state)
+    moved = None if not axes or search is None else out_of_layer_moves(
+        search, axes, network.wall_particle, WALL_KICK_STEP, WALL_KICK_TOUCHING,
         WALL_KICK_COPLANAR)
     restarted = replace(state, step=WALL_KICK_STEP, basis=None,
                         wall_kicks=state.wall_kicks + 1)
@@ -72,9 +75,22 @@ def kick_off_walls(run: Run, state: LoopState, record: Record,
                          f"a container (gap {record.isostaticity_gap:+d}): the loop went on "
                          f"from a fresh step bound")
         return restarted
-    count = int(np.count_nonzero(np.any(moved != state.search.positions, axis=1)))
+    count = int(np.count_nonzero(np.any(moved != search.positions, axis=1)))
     run.history.note(f"LP {run.history.lps_solved} {what} with a hypostatic network "
                      f"between walls (gap {record.isostaticity_gap:+d}): {count} "
                      f"particle(s) held only within a layer parallel to a wall moved "
                      f"out of it, and the loop went on")
+    if state.cell is not None:
+        return replace(restarted, positions=moved)
     return run.moved(restarted, moved)
+
+
+def _search_of(run: Run, state: LoopState) -> NeighborSearch | None:
+    """The neighbour search of `state`: its own in a fixed box, that of its cell's sides in
+    a deformable box whose cell is rectangular, None in a sheared one."""
+    if state.cell is None:
+        return state.search
+    sides = np.diag(run.boundaries.box_cell(state.cell))
+    if np.any(state.cell != np.diag(np.diag(state.cell))):
+        return None
+    return NeighborSearch(state.positions, state.diameters, sides, run.periodic)
