@@ -34,7 +34,7 @@ __all__ = ["strict_newton", "strict_network_first", "NOT_STRICT", "RATTLER_OVERL
 NOT_STRICT = "no strictly jammed point with positive forces"
 RATTLER_OVERLAPPED = "a rattler stays overlapped at the strict point"
 STABLE_OVERLAP = "two stable particles that are no contact overlap at the strict point"
-WALL_CROSSED = "a particle crosses a wall that is no contact at the strict point"
+WALL_CROSSED = "a stable particle crosses a wall that is no contact at the strict point"
 
 
 def strict_newton(run: Run, state: LoopState, network: ContactNetwork, tried_before: str):
@@ -62,8 +62,6 @@ def strict_newton(run: Run, state: LoopState, network: ContactNetwork, tried_bef
                             boundaries=run.boundaries)
     if refined is None or not refined.positive:
         return state.refused(key), None, NOT_STRICT
-    if _crosses_a_wall(run, refined.positions, refined.diameters, network):
-        return state.refused(key), None, WALL_CROSSED
     n = rattlers.size
     keys = np.sort(np.minimum(i, j) * n + np.maximum(i, j))
     moved, stable_overlap = clear_rattlers(refined.positions, refined.diameters,
@@ -72,6 +70,11 @@ def strict_newton(run: Run, state: LoopState, network: ContactNetwork, tried_bef
     if moved is None:
         return ((state.refused(key), None, STABLE_OVERLAP) if stable_overlap
                 else (state, None, RATTLER_OVERLAPPED))
+    crossing = _wall_crossers(run, moved, refined.diameters, network)
+    if np.any(~rattlers[crossing]):
+        return state.refused(key), None, WALL_CROSSED
+    if crossing.size:
+        return state, None, RATTLER_OVERLAPPED
     state = replace(state, positions=moved, diameters=refined.diameters, cell=refined.matrix)
     history = run.history
     history.add_newton(seconds=time.perf_counter() - began,
@@ -88,15 +91,16 @@ def strict_newton(run: Run, state: LoopState, network: ContactNetwork, tried_bef
                                  wall=network.wall, wall_forces=refined.wall_forces), ""
 
 
-def _crosses_a_wall(run: Run, positions: np.ndarray, diameters: np.ndarray,
-                    network: ContactNetwork) -> bool:
-    """Whether a particle crosses a wall that is no contact of `network` beyond the LPs'
+def _wall_crossers(run: Run, positions: np.ndarray, diameters: np.ndarray,
+                   network: ContactNetwork) -> np.ndarray:
+    """The particles that cross a wall that is no contact of `network` beyond the LPs'
     feasibility round-off (`overlap_tolerance`), at `positions` (N, d) and `diameters`
-    (N,); False in a periodic box."""
+    (N,); none in a periodic box. (A rattler that the strict point's small move or
+    `clear_rattlers` pushed into a wall is moved by the next LP.)"""
     near = container_walls(positions, diameters, run.boundaries, run.box)
     n_walls = wall_ids(run.d)
     outside = ~np.isin(near.keys(n_walls), network.wall_particle * n_walls + network.wall)
-    return bool(np.any(outside & (near.gaps < -run.settings.overlap_tolerance)))
+    return near.particle[outside & (near.gaps < -run.settings.overlap_tolerance)]
 
 
 def strict_network_first(run: Run, state: LoopState, hint: np.ndarray | None,
