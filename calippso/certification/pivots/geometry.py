@@ -20,7 +20,7 @@ from ..sparse_lu import Factors
 
 __all__ = ["find_closing_pairs", "closing_rates", "outside_pairs",
            "refined_solve", "clear_rattlers", "rattlers_out_of_the_way",
-           "NEAR_GAP", "NEAR_GAP_WIDENING", "MAX_NEAR_GAP", "RATTLER_REACH", "CAGE_GAP",
+           "NEAR_GAP", "NEAR_GAP_WIDENING", "MAX_NEAR_GAP", "RATTLER_REACH",
            "HARRIS_SLACK", "RATIO_CANDIDATES"]
 
 #: Pairs of stable particles closer than this relative gap enter the ratio test; a step that
@@ -31,10 +31,9 @@ NEAR_GAP_WIDENING = 10.0
 #: is not a small correction of the network.
 MAX_NEAR_GAP = 0.3
 #: Largest displacement component of a rattler moved out of the way of its moved cage
-#: (mean diameters): the cages move by up to ~1e-4 over a path.
-RATTLER_REACH = 1e-3
-#: A caged rattler's d + 1 closest neighbours are looked for within this relative gap.
-CAGE_GAP = 1e-2
+#: (mean diameters): a rattler held by a few near pairs is pushed along by them, by up to a
+#: few 1e-3 over a pivot.
+RATTLER_REACH = 1e-2
 #: Harris's ratio test treats pairs within this much of Φ = |r|²/σ² − Γ (about twice the
 #: relative gap) as closing together: well inside the overlap tolerance of the certificate.
 HARRIS_SLACK = 1e-12

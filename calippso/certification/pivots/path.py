@@ -17,7 +17,8 @@ from ..newton import (MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, network_jacobi
 from ...geometry.packing import minimum_image
 from ...geometry.rattlers import remove_rattlers
 from ..sparse_lu import Factors, factorize, tally
-from .geometry import (CAGE_GAP, NEAR_GAP, RATIO_CANDIDATES, closing_rates, find_closing_pairs,
+from .cages import CageClosure, closing_cages
+from .geometry import (NEAR_GAP, RATIO_CANDIDATES, closing_rates, find_closing_pairs,
                        outside_pairs, rattlers_out_of_the_way, refined_solve)
 from .vertex import DEGENERATE_STEP, Basis, PivotPath, Swap, Vertex
 
@@ -27,8 +28,8 @@ __all__ = ["pivot_to_jamming", "MAX_PIVOTS", "REJOIN_TRIES", "CAGE_CLOSED",
 #: Pivots taken at most before the path gives up (a network a few contacts off takes a few
 #: to a few tens).
 MAX_PIVOTS = 500
-#: Caged rattlers tried (the deepest overlaps first) when one must rejoin the network: each
-#: try is a Newton solve with new unknowns.
+#: Rattlers whose cage closes before the ratio test's pair tried in turn (earliest first)
+#: as the pivot's entering pairs: each try is a Newton solve with new unknowns.
 REJOIN_TRIES = 2
 #: Why a pivot failed when a rattler's cage closed on it (the pivot is then tried again with
 #: the particles that the release leaves with d contacts kept in the network).
@@ -197,6 +198,12 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
         if closing_rates(c_pair, direction)[0] <= 0:
             return None, "the released contact does not open along its floppy mode"
     ratio_test = find_closing_pairs(search, i_a * n + j_a, stable, direction)
+    first_step = np.inf if ratio_test is None else float(ratio_test[1][ratio_test[2][0]])
+    released_pair = (c_i, c_j)
+    for cage in closing_cages(search, stable, direction, first_step)[:REJOIN_TRIES]:
+        entered = _enter_cage(search, vertex, i_a, j_a, stable, direction, cage, released_pair)
+        if entered is not None:
+            return entered, ""
     if ratio_test is None:
         return None, "the floppy mode closes no pair near contact"
     near, steps, candidates = ratio_test
@@ -211,30 +218,12 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
             _jacobian_at(predicted, diameters, search.box, i_new, j_new, stable), next_swapped)
         refined = refine_isostatic(predicted, diameters, search.box, i_new, j_new, stable,
                                    factors=factors)
-        if refined is None:
+        reached = _vertex_at(search, vertex, refined, i_new, j_new, stable, attached)
+        if reached == CAGE_CLOSED:   # a later pair of the ratio test would close it too
+            return None, CAGE_CLOSED
+        if isinstance(reached, str):
             continue
-        growth = float(np.mean(refined.diameters / diameters)) - 1.0
-        if growth < -DEGENERATE_STEP:
-            continue
-        now_rattlers, kept = remove_rattlers(n, d, i_new, j_new)
-        if attached and not kept.all():   # left with d contacts: zero forces, rattlers now
-            i_new, j_new = i_new[kept], j_new[kept]
-            refined = replace(refined, forces=refined.forces[kept])
-        now_stable = ~now_rattlers
-        moved = NeighborSearch(refined.positions, refined.diameters, search.box)
-        if np.any(outside_pairs(moved, i_new * n + j_new, now_stable,
-                                NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
-            continue
-        separated = rattlers_out_of_the_way(moved, refined, now_stable)
-        if separated is None:   # a cage closed on its rattler before this pair closed
-            rejoined = _rejoin_caged(moved, vertex, i_a, j_a, stable, (c_i, c_j))
-            if rejoined is not None:
-                joined, pairs, joined_growth = rejoined
-                swap = Swap((c_i, c_j), pairs[0], max(joined_growth, 0.0),
-                            int(np.count_nonzero(~stable & vertex.stable)), rejoined=1)
-                return (joined, swap), ""
-            return None, CAGE_CLOSED   # a later pair of the ratio test would close it too
-        refined = separated
+        i_new, j_new, now_stable, refined, growth = reached
         if refined.factorization is not None:
             next_basis, next_swaps = Basis(*refined.factorization, stable), ()
         elif basis is not None and basis.gamma_row is None:
@@ -244,10 +233,71 @@ def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
         if not np.array_equal(now_stable, stable):   # the rows of the new rattlers left
             next_basis, next_swaps = None, ()
         candidate = Vertex(i_new, j_new, now_stable, refined, next_basis, next_swaps)
-        swap = Swap((c_i, c_j), (int(near.i[closing]), int(near.j[closing])), max(growth, 0.0),
-                    int(np.count_nonzero(now_rattlers & vertex.stable)))
+        swap = Swap(released_pair, (int(near.i[closing]), int(near.j[closing])), growth,
+                    int(np.count_nonzero(~now_stable & vertex.stable)))
         return (candidate, swap), ""
     return None, "Newton found no vertex without overlap along the floppy mode"
+
+
+def _vertex_at(search: NeighborSearch, vertex: Vertex, refined: Refinement | None,
+               i_new: np.ndarray, j_new: np.ndarray, stable: np.ndarray, attached: bool
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Refinement, float] | str:
+    """The vertex that Newton's solution `refined` of network (i_new, j_new) over the
+    `stable` particles makes: its contacts and stable particles once the particles left with
+    d contacts are rattlers again (`attached`), its rattlers out of the way of the moved
+    cages, and its growth over `vertex` (≥ 0).
+
+    Returns
+    -------
+    (i, j, stable, Refinement, float) or str
+        The vertex, or why there is none: Newton failed, Γ fell, another pair overlaps, or
+        a cage closed on its rattler (`CAGE_CLOSED`).
+    """
+    n, d = search.positions.shape
+    if refined is None:
+        return NEWTON_FAILED
+    growth = float(np.mean(refined.diameters / vertex.refinement.diameters)) - 1.0
+    if growth < -DEGENERATE_STEP:
+        return "the inflation fell"
+    now_rattlers, kept = remove_rattlers(n, d, i_new, j_new)
+    if attached and not kept.all():   # left with d contacts: zero forces, rattlers now
+        i_new, j_new = i_new[kept], j_new[kept]
+        refined = replace(refined, forces=refined.forces[kept])
+    now_stable = ~now_rattlers
+    moved = NeighborSearch(refined.positions, refined.diameters, search.box)
+    if np.any(outside_pairs(moved, i_new * n + j_new, now_stable,
+                            NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
+        return "another pair overlaps"
+    separated = rattlers_out_of_the_way(moved, refined, now_stable)
+    if separated is None:
+        return CAGE_CLOSED
+    return i_new, j_new, now_stable, separated, max(growth, 0.0)
+
+
+def _enter_cage(search: NeighborSearch, vertex: Vertex, i_a: np.ndarray, j_a: np.ndarray,
+                stable: np.ndarray, direction: np.ndarray, cage: CageClosure,
+                released: tuple[int, int]) -> tuple[Vertex, Swap] | None:
+    """The pivot whose entering pairs are a closing cage's (`cages.closing_cages`): the
+    rattler joins the released network (i_a, j_a over `stable`, one floppy mode) with its d + 1
+    closing pairs, and Newton solves that isostatic network from the point of the mode where
+    the cage closes. None when Newton finds no vertex without overlap there."""
+    predicted = vertex.refinement.positions + cage.step * direction
+    predicted[cage.rattlers] += cage.displacements
+    i_new, j_new = np.concatenate([i_a, cage.i]), np.concatenate([j_a, cage.j])
+    joined = stable.copy()
+    joined[cage.rattlers] = True
+    refined = refine_isostatic(predicted, vertex.refinement.diameters, search.box,
+                               i_new, j_new, joined)
+    reached = _vertex_at(search, vertex, refined, i_new, j_new, joined, attached=False)
+    if isinstance(reached, str):
+        return None
+    i_new, j_new, now_stable, refined, growth = reached
+    basis = None if refined.factorization is None else Basis(*refined.factorization, joined)
+    if not np.array_equal(now_stable, joined):
+        basis = None
+    swap = Swap(released, (int(cage.i[0]), int(cage.j[0])), growth,
+                int(np.count_nonzero(~stable & vertex.stable)), rejoined=int(cage.rattlers.size))
+    return Vertex(i_new, j_new, now_stable, refined, basis), swap
 
 
 def _jacobian_at(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -255,58 +305,6 @@ def _jacobian_at(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
     """The contact Jacobian of network (i, j) at a configuration (`calippso.certification.newton`)."""
     vectors = minimum_image(positions[i] - positions[j], box)
     return network_jacobian(vectors, 0.5 * (diameters[i] + diameters[j]), i, j, stable)
-
-
-def _rejoin_caged(moved: NeighborSearch, vertex: Vertex, i_a: np.ndarray, j_a: np.ndarray,
-                  stable: np.ndarray, released: tuple[int, int]
-                  ) -> tuple[Vertex, list[tuple[int, int]], float] | None:
-    """A rattler whose cage closed along the floppy mode joins the network again.
-
-    `moved` is the configuration one pair too far along the mode, where a rattler overlaps
-    its cage and cannot be moved out. Its d + 1 closest pairs with stable particles there
-    (its cage, never the `released` contact) close instead: the released network A (one
-    floppy mode) with those d + 1 rows and the rattler's d unknowns is isostatic, and Newton
-    solves it from the vertex.
-
-    Returns
-    -------
-    (vertex, pairs, growth) or None
-        The new vertex, the cage's pairs, the relative diameter growth; None when neither of
-        the `REJOIN_TRIES` rattlers that overlap most gives a vertex with no overlap.
-    """
-    d = moved.positions.shape[1]
-    close = moved.pairs_within(float(moved.diameters.max()) * (1.0 + CAGE_GAP))
-    one_rattler = (stable[close.i] != stable[close.j]) & ~(
-        (close.i == released[0]) & (close.j == released[1]))
-    overlapping = one_rattler & (close.gaps < -NEWTON_OVERLAP_TOLERANCE)
-    rattler_of = np.where(stable[close.i], close.j, close.i)
-    caged = np.unique(rattler_of[overlapping])
-    positions, diameters = vertex.refinement.positions, vertex.refinement.diameters
-    deepest = np.argsort([close.gaps[overlapping & (rattler_of == r)].min() for r in caged])
-    for rattler in caged[deepest][:REJOIN_TRIES]:
-        own = np.flatnonzero(one_rattler & (rattler_of == rattler))
-        if own.size < d + 1:
-            continue
-        cage = own[np.argsort(close.gaps[own])[:d + 1]]
-        i_new = np.concatenate([i_a, close.i[cage]])
-        j_new = np.concatenate([j_a, close.j[cage]])
-        joined = stable.copy()
-        joined[rattler] = True
-        refined = refine_isostatic(positions, diameters, moved.box, i_new, j_new, joined)
-        if refined is None:
-            continue
-        growth = float(np.mean(refined.diameters / diameters)) - 1.0
-        after = NeighborSearch(refined.positions, refined.diameters, moved.box)
-        candidate = Vertex(i_new, j_new, joined, refined)
-        overlaps = outside_pairs(after, candidate.keys, joined, NEAR_GAP).gaps
-        if growth < -DEGENERATE_STEP or np.any(overlaps < -NEWTON_OVERLAP_TOLERANCE):
-            continue
-        separated = rattlers_out_of_the_way(after, refined, joined)
-        if separated is None:
-            continue
-        pairs = [(int(a), int(b)) for a, b in zip(close.i[cage], close.j[cage])]
-        return Vertex(i_new, j_new, joined, separated), pairs, growth
-    return None
 
 
 def _floppy_mode(search: NeighborSearch, i: np.ndarray, j: np.ndarray, stable: np.ndarray,

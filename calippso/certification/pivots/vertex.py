@@ -48,8 +48,8 @@ class Swap:
     new_rattlers : int
         Particles the release left with d contacts (they leave the network).
     rejoined : int
-        Rattlers whose cage closed along the floppy mode (they join the network with d + 1
-        contacts; `closed` is the first of them).
+        Rattlers whose cage closed along the floppy mode first (k of them join the network
+        with the k d + 1 pairs that closed; `closed` is the first of those).
     non_positive : int
         Contacts whose force is still not positive at the vertex this pivot reached.
     seconds : float
