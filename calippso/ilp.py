@@ -93,8 +93,9 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         box does: "fixed" (default) keeps it as given; "deformable" puts the box's strain
         in every LP (volume not growing), towards a strictly jammed packing
         (`calippso.deformable`: this loop with the strain columns and a strict Newton
-        stage; periodic boxes, rectangular or sheared input, the LP route; the result holds
-        the final box matrix and the stress tensor).
+        stage; periodic boxes, rectangular or sheared input, and containers with a
+        periodic axis, strained on their periodic axes only; the LP route; the result
+        holds the final box matrix and the stress tensor).
     solver : {"highs", "clarabel", "cvxpy"} or str
         LP backend. "highs" (interior point + crossover) gives vertex solutions whose duals
         identify contacts exactly; the others are interior-point solvers at tight tolerances.

@@ -287,27 +287,25 @@ class JammingResult:
         """The virial pressure of the contact forces: tr(`contact_stress`)/d, over the
         periodic axes in a container (a deformable run's; the walls carry the rest); NaN
         without a stress."""
-        block = self._periodic_stress
-        return float("nan") if block is None else float(np.trace(block)) / block.shape[0]
+        return self._stress_reading[0]
 
     @property
     def stress_anisotropy(self) -> float:
         """max |stress − p I| / p of `contact_stress` (of its periodic axes in a container):
         zero up to round-off at a strictly jammed point, a few per cent at a jamming point
         of a fixed box (N = 1024); NaN without a stress."""
-        block, pressure = self._periodic_stress, self.pressure
-        if block is None or not pressure > 0:
-            return float("nan")
-        return float(np.abs(block - pressure * np.eye(block.shape[0])).max() / pressure)
+        return self._stress_reading[1]
 
     @property
-    def _periodic_stress(self) -> np.ndarray | None:
-        """The block of `contact_stress` on the periodic axes, or None without a stress."""
+    def _stress_reading(self) -> tuple[float, float]:
+        """(pressure, anisotropy) of `contact_stress` on the periodic axes
+        (`calippso.deformable.anisotropy`); NaN without a stress."""
+        from .deformable import anisotropy
+
         stress = self.contact_stress
         if stress is None:
-            return None
-        periodic = self.packing.periodic
-        return stress[np.ix_(periodic, periodic)]
+            return float("nan"), float("nan")
+        return anisotropy(stress, self.packing.periodic)
 
     @property
     def rattler_fraction(self) -> float:

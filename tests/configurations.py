@@ -103,3 +103,20 @@ def mls_start() -> Packing:
     import generators
 
     return generators.poisson(generators.diameters.monodisperse(64), 3, phi=0.3, seed=6)
+
+
+def container_gaps(packing: Packing) -> tuple[np.ndarray, np.ndarray]:
+    """Relative gaps of every pair (minimum image along the periodic axes, in a sheared box
+    too), and of every particle to every flat wall and to the cylinder."""
+    delta = packing.minimum_image(packing.positions[:, None, :] - packing.positions[None, :, :])
+    sigma = 0.5 * (packing.diameters[:, None] + packing.diameters[None, :])
+    pairs = np.linalg.norm(delta, axis=2) / sigma - 1
+    radius = packing.diameters / 2
+    walls = [np.minimum(packing.positions[:, axis], packing.box[axis]
+                        - packing.positions[:, axis]) / radius - 1
+             for axis in packing.boundaries.wall_axes]
+    if packing.boundaries.cylinder_axes:
+        axes = list(packing.boundaries.cylinder_axes)
+        rho = np.linalg.norm(packing.positions[:, axes] - 0.5 * packing.box[axes], axis=1)
+        walls.append((0.5 * packing.box[axes[0]] - rho) / radius - 1)
+    return pairs[np.triu_indices(packing.n, 1)], np.concatenate([np.zeros(0), *walls])

@@ -16,6 +16,7 @@ import pytest
 
 import calippso
 import generators
+from configurations import container_gaps
 from calippso import Boundaries, Packing
 from calippso.cli import main
 from calippso.errors import JammingError, SolverError
@@ -111,30 +112,13 @@ def _jammed(name: str, d: int) -> calippso.JammingResult:
     return calippso.jam(_loose(name, d))
 
 
-def _gaps(packing: Packing) -> tuple[np.ndarray, np.ndarray]:
-    """Relative gaps of every pair (minimum image along the periodic axes, in a sheared box
-    too), and of every particle to every flat wall and to the cylinder."""
-    delta = packing.minimum_image(packing.positions[:, None, :] - packing.positions[None, :, :])
-    sigma = 0.5 * (packing.diameters[:, None] + packing.diameters[None, :])
-    pairs = np.linalg.norm(delta, axis=2) / sigma - 1
-    radius = packing.diameters / 2
-    walls = [np.minimum(packing.positions[:, axis], packing.box[axis]
-                        - packing.positions[:, axis]) / radius - 1
-             for axis in packing.boundaries.wall_axes]
-    if packing.boundaries.cylinder_axes:
-        axes = list(packing.boundaries.cylinder_axes)
-        rho = np.linalg.norm(packing.positions[:, axes] - 0.5 * packing.box[axes], axis=1)
-        walls.append((0.5 * packing.box[axes[0]] - rho) / radius - 1)
-    return pairs[np.triu_indices(packing.n, 1)], np.concatenate([np.zeros(0), *walls])
-
-
 def assert_jammed_in_its_container(result, start: Packing) -> None:
     """Converged in the container of its input, overlap-free and inside it, with positive
     forces in balance on a rigid network."""
     packing = result.packing
     assert result.converged, result.status
     assert packing.boundaries == start.boundaries
-    pairs, walls = _gaps(packing)
+    pairs, walls = container_gaps(packing)
     assert pairs.min() >= -OVERLAP and walls.min(initial=0.0) >= -OVERLAP
     assert np.all(result.forces > 0) and np.all(result.wall_forces > 0)
     assert result.force_balance <= BALANCE
@@ -212,7 +196,7 @@ def test_relax_and_precompress_answer(name, d):
     for moved in (generators.relax(start).packing,
                   precompress(start, PRECOMPRESS_PRESSURE).packing):
         assert moved.boundaries == start.boundaries and moved.n == start.n
-        pairs, walls = _gaps(moved)
+        pairs, walls = container_gaps(moved)
         assert pairs.min() >= -OVERLAP and walls.min(initial=0.0) >= -OVERLAP
 
 

@@ -19,7 +19,7 @@ import itertools
 
 import numpy as np
 import pytest
-from configurations import bidisperse, random_sequential_addition
+from configurations import bidisperse, container_gaps, random_sequential_addition
 from conftest import kill_after_saved_lps
 
 from calippso import Boundaries, StopReason, jam, jamming_category
@@ -85,19 +85,6 @@ def minimum_images(packing) -> np.ndarray:
     return best
 
 
-def wall_gaps(packing) -> np.ndarray:
-    """Relative gap of every particle to every flat wall and to the cylinder."""
-    radius = packing.diameters / 2
-    gaps = [np.minimum(packing.positions[:, axis], packing.box[axis]
-                       - packing.positions[:, axis]) / radius - 1
-            for axis in packing.boundaries.wall_axes]
-    if packing.boundaries.cylinder_axes:
-        axes = list(packing.boundaries.cylinder_axes)
-        rho = np.linalg.norm(packing.positions[:, axes] - 0.5 * packing.box[axes], axis=1)
-        gaps.append((0.5 * packing.box[axes[0]] - rho) / radius - 1)
-    return np.concatenate(gaps)
-
-
 def assert_strictly_jammed_in(result, start) -> None:
     """Strictly jammed in the container of `start`, with every certificate checked here."""
     packing, boundaries = result.packing, start.boundaries
@@ -113,7 +100,7 @@ def assert_strictly_jammed_in(result, start) -> None:
     i, j = np.triu_indices(packing.n, 1)
     sigma = 0.5 * (packing.diameters[i] + packing.diameters[j])
     assert np.min(np.linalg.norm(minimum_images(packing), axis=1) / sigma - 1) >= -OVERLAP
-    assert wall_gaps(packing).min() >= -OVERLAP
+    assert container_gaps(packing)[1].min() >= -OVERLAP
     # the strict count: the container's rigid motions less the periodic axes' shape
     d_p = int(boundaries.periodic.sum())
     expected = packing.d * result.n_stable - boundaries.zero_modes + strain_count(d_p)
