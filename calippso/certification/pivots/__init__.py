@@ -24,12 +24,14 @@ exact geometry, one contact at a time, as the simplex method moves from vertex t
    test is tried. Its forces cost one transposed solve. Repeat from 1.
 
 Rattlers (those of the start, and those a release leaves) carry no force and do not move
-with the floppy modes; when a moved cage overlaps its rattler, the rattler is moved out of
-the way (`calippso.geometry.rattlers.separate_rattlers`). When a cage closes on its rattler before
-the pair of the ratio test closes, the rattler joins the network with the d + 1 pairs of its
-cage (d unknowns and d + 1 rows: the released network becomes isostatic again). When the
-cage of a particle that the release left with d contacts closes on it, the pivot is made
-again with that particle kept in the network, held by its d contacts.
+with the floppy modes. Their cages enter the ratio test (`cages.closing_cages`): a small LP
+per cage finds the step at which its rattlers (one, or a few near one another) no longer
+fit; when that comes before the pair of the ratio test, the k rattlers join the network with
+the k d + 1 pairs that close on them (k d unknowns and k d + 1 rows: the released network
+becomes isostatic again). A rattler whose cage stays open is moved out of the way of the
+moved cage (`calippso.geometry.rattlers.separate_rattlers`); when one cannot be, the pivot
+is made again with the particles that the release left with d contacts kept in the network,
+held by their d contacts.
 
 Γ never decreases, so the path can only revisit a network through degenerate pivots (where
 the closing pair already touches); Bland's rule and a record of the networks seen since Γ
