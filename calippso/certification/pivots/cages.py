@@ -36,6 +36,9 @@ CAGE_GAP = 5e-2
 #: by less than `CAGE_STEP_TOLERANCE` (relative).
 CAGE_LINEARISATIONS = 4
 CAGE_STEP_TOLERANCE = 1e-6
+#: Steps (inflation units) beyond this are no closure: a cage that would close only after
+#: Γ doubled is not a correction of the network.
+MAX_CAGE_STEP = 1.0
 #: A pair binds at the optimum when its dual is above this, relative to the largest one.
 BINDING_DUAL = 1e-9
 
@@ -88,23 +91,22 @@ def closing_cages(search: NeighborSearch, stable: np.ndarray, mode: np.ndarray,
         hold (a degenerate optimum, or a rattler held by `RATTLER_REACH`: it cannot be moved
         out of the way there) is left out.
     """
-    n, d = mode.shape
     cage = _cage_pairs(search, stable)
     cluster = _clusters(cage, stable)
     of_pair = np.where(stable[cage.i], cluster[cage.j], cluster[cage.i])
     # rattlers standing still are free until their first pair closes: no earlier closure
-    standing_still = np.where(stable, 1.0, 0.0)[:, None] * mode
-    rates = _rates(cage, standing_still)
+    rates = _rates(cage, _cage_motion(stable, mode))
     standing = np.full(len(cage), np.inf)
     closing = rates < 0
     standing[closing] = np.maximum(_phi(cage.vectors[closing], cage.sigma[closing]),
                                    0.0) / -rates[closing]
-    closures = []
-    for label in np.unique(of_pair[standing < before]):
-        closure = _cage_closure(np.flatnonzero(cluster == label), cage.subset(of_pair == label),
-                                stable, mode)
-        if closure is not None and closure.step < before:
-            closures.append(closure)
+    flagged = np.unique(of_pair[standing < before])
+    cap = min(before, MAX_CAGE_STEP)
+    closures = _closures(cage, of_pair, cluster, flagged, stable, mode, cap)
+    if closures is None:   # one cage's LP fails (a pair overlaps already): each on its own
+        closures = [closure for label in flagged
+                    for closure in _closures(cage, of_pair, cluster, label[None], stable,
+                                             mode, cap) or []]
     return sorted(closures, key=lambda closure: closure.step)
 
 
@@ -137,51 +139,78 @@ def _rates(pairs: Pairs, motion: np.ndarray) -> np.ndarray:
     return 2.0 * np.einsum("pd,pd->p", pairs.vectors, relative) / pairs.sigma**2 - 1.0
 
 
-def _cage_closure(rattlers: np.ndarray, own: Pairs, stable: np.ndarray,
-                  mode: np.ndarray) -> CageClosure | None:
-    """The largest step at which the rattlers still fit their moving cage (module doc)."""
+def _cage_motion(stable: np.ndarray, mode: np.ndarray) -> np.ndarray:
+    """The motion of each particle along the mode per unit step, shape (N, d): the mode on
+    stable particles, zero on rattlers (theirs is δ)."""
+    return np.where(stable, 1.0, 0.0)[:, None] * mode
+
+
+def _closures(cage: Pairs, of_pair: np.ndarray, cluster: np.ndarray, labels: np.ndarray,
+              stable: np.ndarray, mode: np.ndarray, cap: float) -> list[CageClosure] | None:
+    """The largest step at which the rattlers of each cage in `labels` still fit it (module
+    doc), all cages in one LP (they share no variable: each step is maximised on its own),
+    capped at `cap`; the cages that close below it. None when the LP fails."""
     from scipy.optimize import linprog   # the LP solver, only when a cage may close
 
-    k, d = rattlers.size, mode.shape[1]
-    column = np.full(stable.shape[0], -1)
-    column[rattlers] = d * np.arange(k)
-    # the motion of each end of a pair along the mode (zero on rattlers: theirs is δ)
-    cage_motion = np.where(stable, 1.0, 0.0)[:, None] * mode
-    objective = np.zeros(k * d + 1)
-    objective[-1] = -1.0
-    bounds = [(-RATTLER_REACH, RATTLER_REACH)] * (k * d) + [(0.0, None)]
-    displacements, step = np.zeros((k, d)), 0.0
+    if labels.size == 0:
+        return []
+    n, d = mode.shape
+    chosen = np.isin(of_pair, labels)
+    own = cage.subset(chosen)
+    block = np.searchsorted(labels, of_pair[chosen])
+    rattlers = np.flatnonzero(~stable & np.isin(cluster, labels))
+    column = np.full(n, -1)
+    column[rattlers] = d * np.arange(rattlers.size)
+    n_steps = labels.size
+    n_columns = d * rattlers.size + n_steps
+    step_column = d * rattlers.size + block
+    motion = _cage_motion(stable, mode)
+    objective = np.zeros(n_columns)
+    objective[d * rattlers.size:] = -1.0
+    bounds = [(-RATTLER_REACH, RATTLER_REACH)] * (d * rattlers.size) + [(0.0, cap)] * n_steps
+    here = np.zeros(n_columns)
     result = None
     for _ in range(CAGE_LINEARISATIONS):
-        moved = np.zeros_like(mode)
-        moved[rattlers] = displacements
-        shift = moved + step * cage_motion
-        vectors = own.vectors + shift[own.i] - shift[own.j]
-        phi = _phi(vectors, own.sigma) - step
+        displacement = np.zeros((n, d))
+        displacement[rattlers] = here[:d * rattlers.size].reshape(-1, d)
+        steps = here[step_column]
+        ends = [displacement[end] + steps[:, None] * motion[end] for end in (own.i, own.j)]
+        vectors = own.vectors + ends[0] - ends[1]
+        phi = _phi(vectors, own.sigma) - steps
         gradient = 2.0 * vectors / own.sigma[:, None] ** 2   # dΦ/d(x_i − x_j)
-        rows = np.zeros((len(own), k * d + 1))
+        rows, cols, values = [np.arange(len(own))], [step_column], [
+            np.einsum("pd,pd->p", gradient, motion[own.i] - motion[own.j]) - 1.0]
         for end, sign in ((own.i, 1.0), (own.j, -1.0)):
-            held = column[end] >= 0
-            for axis in range(d):
-                rows[np.flatnonzero(held), column[end][held] + axis] += sign * gradient[held, axis]
-        rows[:, -1] = np.einsum("pd,pd->p", gradient,
-                                cage_motion[own.i] - cage_motion[own.j]) - 1.0
+            held = np.flatnonzero(column[end] >= 0)
+            rows.append(np.repeat(held, d))
+            cols.append((column[end[held], None] + np.arange(d)).ravel())
+            values.append((sign * gradient[held]).ravel())
+        matrix = sp.csr_matrix((np.concatenate(values),
+                                (np.concatenate(rows), np.concatenate(cols))),
+                               shape=(len(own), n_columns))
         # Φ + g·(x − x_k) ≥ 0, x = (δ, t)
-        here = np.append(displacements.ravel(), step)
-        result = linprog(objective, A_ub=-rows, b_ub=phi - rows @ here, bounds=bounds,
+        result = linprog(objective, A_ub=-matrix, b_ub=phi - matrix @ here, bounds=bounds,
                          method="highs")
         if result.status != 0:
             return None
-        previous = step
-        displacements, step = result.x[:-1].reshape(k, d), float(result.x[-1])
-        if abs(step - previous) <= CAGE_STEP_TOLERANCE * step:
+        previous, here = steps, result.x
+        if np.all(np.abs(here[step_column] - previous)
+                  <= CAGE_STEP_TOLERANCE * here[step_column]):
             break
     duals = np.abs(result.ineqlin.marginals)
-    binding = np.flatnonzero(duals > BINDING_DUAL * duals.max(initial=0.0))
-    # the rattlers that the binding pairs hold (others of the cluster stay free)
-    held = np.intersect1d(rattlers, np.concatenate([own.i[binding], own.j[binding]]))
-    if binding.size != held.size * d + 1:
-        return None
-    return CageClosure(held.astype(np.int64), step,
-                       displacements[np.searchsorted(rattlers, held)],
-                       own.i[binding].astype(np.int64), own.j[binding].astype(np.int64))
+    steps = here[d * rattlers.size:]
+    closures = []
+    for index, label in enumerate(labels):
+        if not steps[index] < cap:
+            continue
+        pairs = np.flatnonzero(block == index)
+        binding = pairs[duals[pairs] > BINDING_DUAL * duals[pairs].max(initial=0.0)]
+        # the rattlers that the binding pairs hold (others of the cluster stay free)
+        held = np.intersect1d(rattlers, np.concatenate([own.i[binding], own.j[binding]]))
+        if binding.size != held.size * d + 1:
+            continue
+        displacements = here[(column[held, None] + np.arange(d))]
+        closures.append(CageClosure(held.astype(np.int64), float(steps[index]),
+                                    displacements, own.i[binding].astype(np.int64),
+                                    own.j[binding].astype(np.int64)))
+    return closures
