@@ -24,6 +24,7 @@ from conftest import kill_after_saved_lps
 
 from calippso import Boundaries, StopReason, jam, jamming_category
 from calippso.deformable import strain_count, strict_zero_modes
+from calippso.io import read_result, write
 
 #: The containers, by name: (d, boundaries, N, φ of the loose start).
 CONTAINERS = {
@@ -170,3 +171,16 @@ def test_a_container_without_a_periodic_axis_is_refused_in_one_line(d, boundarie
     with pytest.raises(ValueError, match="needs a periodic axis") as refused:
         jam(start, box="deformable")
     assert "\n" not in str(refused.value)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".h5"])
+def test_a_sheared_container_keeps_its_box_and_walls_in_a_file(runs, tmp_path, suffix):
+    _, start, _, from_fixed, from_loose = runs
+    for result in (from_fixed, from_loose):
+        path = tmp_path / f"result{suffix}"
+        write(result, path)
+        again = read_result(path)
+        assert again.packing.boundaries == start.boundaries
+        np.testing.assert_array_equal(again.packing.lattice, result.packing.lattice)
+        np.testing.assert_array_equal(again.wall_contacts, result.wall_contacts)
+        assert again.isostatic and again.stress_anisotropy <= ISOTROPY

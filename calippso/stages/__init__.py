@@ -18,5 +18,7 @@ and what the stage found; each adds its records and notes to the run's history.
 - `finish`: forces repaired, round-off overlaps shrunk away, the `JammingResult`.
 - `strict_finish`: in a deformable box, the forces with an isotropic stress, the stress and
   the strict certificate, the `JammingResult`.
+- `strict_forces`: the forces of that finish: in balance (walls included) with a stress
+  isotropic on the periodic axes, at the final geometry.
 - `saved`: the loop's state in a checkpoint, and back.
 """
