@@ -55,6 +55,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .geometry.boundaries import Boundaries
+from .geometry.contacts import stress_reading
 from .geometry.packing import Packing
 from .geometry.sheared_search import half_shortest_vector, sheared_pairs_within
 from .geometry.walls import WallRows, empty_walls, wall_rows_within
@@ -68,7 +69,7 @@ from .step import BINDING_REDUCED_COST, Step, analyse, at_bound
 
 __all__ = ["strain_count", "strict_zero_modes", "check_strainable", "strain_matrix",
            "strain_coefficients", "strained_lp", "select_rows", "container_walls",
-           "analyse_strained", "median_gap", "smallest_gap", "contact_stress", "anisotropy",
+           "analyse_strained", "median_gap", "smallest_gap", "contact_stress",
            "certificate_note", "strict_category", "floppy_strict_rows",
            "DEFORMABLE_NOTE", "INITIAL_STEP_FLOOR"]
 
@@ -315,16 +316,6 @@ def contact_stress(vectors: np.ndarray, forces: np.ndarray, volume: float) -> np
     return 0.5 * (stress + stress.T)
 
 
-def anisotropy(stress: np.ndarray, periodic: np.ndarray) -> tuple[float, float]:
-    """The pressure p = tr/d_p of the periodic block of `stress` (shape (d, d); `periodic`
-    (d,), bool) and that block's anisotropy max |stress − p I| / p (NaN when p ≤ 0)."""
-    block = stress[np.ix_(periodic, periodic)]
-    pressure = float(np.trace(block)) / block.shape[0]
-    if not pressure > 0:
-        return pressure, float("nan")
-    return pressure, float(np.abs(block - pressure * np.eye(block.shape[0])).max()) / pressure
-
-
 def certificate_note(lp: LinearProgram, solution: LPSolution, stress: np.ndarray,
                      periodic: np.ndarray) -> str:
     """The strain certificate of the last LP: the anisotropy of its own contact stress
@@ -335,12 +326,12 @@ def certificate_note(lp: LinearProgram, solution: LPSolution, stress: np.ndarray
     duals = solution.duals[:len(pairs)]
     lp_stress = np.einsum("k,ka,kb->ab", duals / pairs.distances, pairs.vectors,
                           pairs.vectors)
-    lp_pressure, lp_anisotropy = anisotropy(lp_stress, periodic)
+    lp_pressure, lp_anisotropy = stress_reading(lp_stress, periodic)
     volume_multiplier = float((lp.matrix.T @ solution.duals)[lp.n_cols - 2])
     if not lp_pressure > 0:
         return "strain certificate: the last LP has no contact stress"
     mismatch = abs(volume_multiplier - lp_pressure) / lp_pressure
-    final_anisotropy = anisotropy(stress, periodic)[1]
+    final_anisotropy = stress_reading(stress, periodic)[1]
     return (f"strain certificate of the last LP: stress anisotropy {lp_anisotropy:.1e}, volume "
             f"multiplier = virial pressure to {mismatch:.1e}; final forces: stress "
             f"anisotropy {final_anisotropy:.1e}")

@@ -299,13 +299,13 @@ class JammingResult:
     @property
     def _stress_reading(self) -> tuple[float, float]:
         """(pressure, anisotropy) of `contact_stress` on the periodic axes
-        (`calippso.deformable.anisotropy`); NaN without a stress."""
-        from .deformable import anisotropy
+        (`calippso.geometry.contacts.stress_reading`); NaN without a stress."""
+        from .geometry.contacts import stress_reading
 
         stress = self.contact_stress
         if stress is None:
             return float("nan"), float("nan")
-        return anisotropy(stress, self.packing.periodic)
+        return stress_reading(stress, self.packing.periodic)
 
     @property
     def rattler_fraction(self) -> float:

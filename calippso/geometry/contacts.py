@@ -11,7 +11,8 @@ import numpy as np
 from .rattlers import remove_rattlers
 
 __all__ = ["contact_mask", "remove_rattlers", "net_forces", "force_balance",
-           "isostaticity_gap", "equilibrium_matrix", "polish_forces", "positive_self_stress"]
+           "isostaticity_gap", "equilibrium_matrix", "polish_forces", "positive_self_stress",
+           "stress_reading"]
 
 #: `positive_self_stress` takes forces as balanced when the largest net force is below this
 #: times the largest force.
@@ -213,3 +214,13 @@ def positive_self_stress(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarr
     low = uniform < floor
     mix = float(np.max((floor - uniform[low]) / (widest[low] - uniform[low])))
     return uniform + min(mix, 1.0) * (widest - uniform)
+
+
+def stress_reading(stress: np.ndarray, periodic: np.ndarray) -> tuple[float, float]:
+    """The pressure p = tr/d_p of the periodic block of `stress` (shape (d, d); `periodic`
+    (d,), bool) and that block's anisotropy max |stress − p I| / p (NaN when p ≤ 0)."""
+    block = stress[np.ix_(periodic, periodic)]
+    pressure = float(np.trace(block)) / block.shape[0]
+    if not pressure > 0:
+        return pressure, float("nan")
+    return pressure, float(np.abs(block - pressure * np.eye(block.shape[0])).max()) / pressure
