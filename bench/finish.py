@@ -107,7 +107,7 @@ def network_first_rounds(packing: calippso.Packing, hint: np.ndarray,
     paths, refused = [], []
     began = time.perf_counter()
 
-    def unbudgeted(*arguments, refined=None, max_pivots=0):
+    def unbudgeted(*arguments, refined=None, **budget):
         left = max(time_limit - (time.perf_counter() - began), 0.0)
         path, failure = pivot_to_jamming(*arguments, refined=refined, max_pivots=UNLIMITED,
                                          time_limit=left)
@@ -116,15 +116,13 @@ def network_first_rounds(packing: calippso.Packing, hint: np.ndarray,
         (paths if path is not None else refused).append((start, path, failure))
         return path, failure
 
-    saved = (network_first.pivot_to_jamming, network_first.ROUND_PIVOTS,
-             network_first.STAGE_PIVOTS)
+    saved = network_first.pivot_to_jamming, network_first.STAGE_PIVOT_FACTORIZATIONS
     network_first.pivot_to_jamming = unbudgeted
-    network_first.ROUND_PIVOTS = network_first.STAGE_PIVOTS = UNLIMITED
+    network_first.STAGE_PIVOT_FACTORIZATIONS = UNLIMITED
     try:
         settled, failure, _ = network_first.settle_candidate(search, candidate, packing.d)
     finally:
-        (network_first.pivot_to_jamming, network_first.ROUND_PIVOTS,
-         network_first.STAGE_PIVOTS) = saved
+        network_first.pivot_to_jamming, network_first.STAGE_PIVOT_FACTORIZATIONS = saved
     row = {"seconds": time.perf_counter() - began, "paths": len(paths),
            "refused_starts": len(refused),
            "ended": "settled" if settled is not None else failure}

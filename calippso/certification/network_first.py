@@ -24,8 +24,9 @@ unbounded: a hint that misses contacts, or pairs that close on the way to the ja
 point), a pair that must close is missing: the round reads the pairs `WIDENING` times
 farther from contact instead (never beyond `calippso.certification.network_guess.CANDIDATE_GAP`).
 
-The pivots of all rounds (and of all the candidates the stage tries) share one budget,
-`STAGE_PIVOTS`: a network that needs more is too far off for one contact at a time.
+The pivots of all rounds (and of all the candidates the stage tries) share one budget of
+wall time, `STAGE_PIVOT_FACTORIZATIONS` sparse LU factorisations of the first network's
+Jacobian: a network that needs more is too far off for one contact at a time.
 
 This is the loop of `calippso.ilp` with only near pairs as rows and Newton as the update.
 The caller (`jam`) still certifies the accepted network (overlaps, rattlers, the touching
@@ -46,8 +47,9 @@ from .network_guess import CANDIDATE_GAP, Candidate
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .pivots import PivotPath, pivot_to_jamming
 from .restricted_lp import TOO_FEW, lp_network
+from .sparse_lu import tally
 
-__all__ = ["MAX_ROUNDS", "STAGE_PIVOTS", "PivotBudget", "SettledNetwork", "settle_candidate"]
+__all__ = ["MAX_ROUNDS", "STAGE_PIVOT_FACTORIZATIONS", "PivotBudget", "SettledNetwork", "settle_candidate"]
 
 #: Rounds of restricted LP and Newton tried per candidate (each costs two or three sparse
 #: factorisations); a near-jammed input settles in one to three.
@@ -56,38 +58,52 @@ MAX_ROUNDS = 6
 #: a pair that closes on the way to the jamming point is missing), the pairs within this
 #: factor farther from contact are read too, in a round of their own.
 WIDENING = 4.0
-#: Contact pivots taken at most in one round; a network that needs more is chosen again by
-#: the restricted LP at the point they reached (each pivot costs up to a sparse LU).
-ROUND_PIVOTS = 40
-#: Contact pivots the network-first stage takes at most over all its rounds and candidates.
-#: The N = 8192 quenches that it certifies took 0 to 30 over their rounds (seeds 1, 2, 3, 5:
-#: 12, 30, 8, 0), at 1-6 s each there,
-#: about a tenth of one interior-point LP of the same packing: a network that needs more is
-#: left to the LP loop, which sees all of it at once.
-STAGE_PIVOTS = 32
+#: Wall time of contact pivots that the network-first stage spends at most over all its
+#: rounds and candidates, in sparse LU factorisations of its first network's Jacobian (the
+#: first one timed on the run's machine, so that the budget follows the machine and N):
+#: about two interior-point LPs of the same packing (one costs 30 to 75 such factorisations
+#: at N = 8192 and 16384). The N = 8192 quench to p = 1e-6 of seed 1 settles after 179
+#: pivots, 130 s, about 145 factorisations there; a network that needs more is left to the
+#: LP loop, which sees all of it at once.
+STAGE_PIVOT_FACTORIZATIONS = 150
 
 
 @dataclass
 class PivotBudget:
-    """Contact pivots still allowed to the network-first stage (shared by its candidates).
+    """Seconds of contact pivots still allowed to the network-first stage (shared by its
+    candidates).
 
     Attributes
     ----------
-    remaining : int
-        Pivots left (`STAGE_PIVOTS` at the start of the stage); `settle_candidate` stops a
-        candidate once none are.
+    seconds : float or None
+        Seconds left; None until `price` sets them (`STAGE_PIVOT_FACTORIZATIONS` times the
+        first factorisation); `settle_candidate` stops a candidate once none are left.
     """
 
-    remaining: int
+    seconds: float | None = None
 
-    def per_path(self) -> int:
-        """Pivots one path may take: a round's share, within what is left."""
-        return min(ROUND_PIVOTS, self.remaining)
+    def price(self, factorization_seconds: float) -> None:
+        """Set the budget from the time of one factorisation of the network's Jacobian (the
+        first price holds)."""
+        if self.seconds is None:
+            self.seconds = STAGE_PIVOT_FACTORIZATIONS * factorization_seconds
+
+    @property
+    def spent(self) -> bool:
+        return self.seconds is not None and self.seconds <= 0
+
+    def per_path(self) -> float | None:
+        """Seconds one path may take: what is left (None: not priced yet, no limit)."""
+        return self.seconds
 
     def spend(self, path: PivotPath | None) -> None:
-        """Count the pivots a path took (none when its start was refused)."""
-        if path is not None:
-            self.remaining -= path.pivots
+        """Count the wall time of a path (none when its start was refused)."""
+        if path is not None and self.seconds is not None:
+            self.seconds -= path.seconds
+
+    def describe(self) -> str:
+        return (f"the stage's {STAGE_PIVOT_FACTORIZATIONS} factorisations' worth of contact "
+                f"pivots are spent")
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,8 +159,9 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         Follow contact pivots from a round's network whose jamming point has non-positive
         forces and no overlap (`calippso.certification.pivots`), before another round.
     budget : PivotBudget, optional
-        The pivots allowed (spent as they are taken); a fresh `STAGE_PIVOTS` when omitted.
-        A candidate is refused once the budget is spent and its network is not settled.
+        The seconds of pivots allowed (spent as they are taken); a fresh budget, priced on
+        the first Newton solve, when omitted. A candidate is refused once the budget is
+        spent and its network is not settled.
 
     Returns
     -------
@@ -155,11 +172,11 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
     """
     n = search.positions.shape[0]
     current, base, near_gap = search, candidate.pairs, candidate.near_gap
-    budget = PivotBudget(STAGE_PIVOTS) if budget is None else budget
+    budget = PivotBudget() if budget is None else budget
     pairs, opened, failure, reached = base, -1, "", None
     for round_number in range(1, MAX_ROUNDS + 1):
-        if pivots and budget.remaining <= 0:
-            return None, f"the stage's {STAGE_PIVOTS} contact pivots are spent ({failure})", reached
+        if pivots and budget.spent:
+            return None, f"{budget.describe()} ({failure})", reached
         # an isostatic candidate leaves the restricted LP no choice: the pivots repair it
         direct = pivots and round_number == 1 and _solvable_as_it_is(pairs, n, d)
         closed, failure = ((np.ones(len(pairs), dtype=bool), "") if direct
@@ -177,8 +194,11 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         i, j = pairs.i[closed][kept], pairs.j[closed][kept]
         if isostaticity_gap(i.shape[0], int(n - rattlers.sum()), d) != 0:
             return None, "the restricted LP's network is not isostatic", reached
-        refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
-                                   ~rattlers)
+        with tally() as cost:
+            refined = refine_isostatic(current.positions, current.diameters, search.box, i, j,
+                                       ~rattlers)
+        if cost.factorizations:
+            budget.price(cost.factorize_seconds / cost.factorizations)
         if refined is None and direct:
             continue   # the restricted LP chooses from the same pairs
         if refined is None:
@@ -191,7 +211,7 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         if pivots and not refined.positive and not overlap:
             path, failure = pivot_to_jamming(current.positions, current.diameters,
                                              search.box, i, j, rattlers, refined=refined,
-                                             max_pivots=budget.per_path())
+                                             time_limit=budget.per_path())
             budget.spend(path)
             if path is not None:   # the next round starts where the pivots stopped
                 i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement

@@ -4,8 +4,9 @@ Candidates come from `calippso.certification.network_guess` in a periodic box (t
 gap spectrum) and from `calippso.certification.container_guess` in a container (pairs and wall contacts
 read from their gaps). At most `MAX_NETWORK_GUESSES` are tried: a periodic candidate is
 settled first (`calippso.certification.network_first.settle_candidate`: restricted LP, Newton and contact
-pivots, a few rounds; all candidates share one budget of `STAGE_PIVOTS` pivots), then each
-goes to the Newton stage's certificate. Each candidate adds
+pivots, a few rounds; all candidates share one budget of wall time,
+`STAGE_PIVOT_FACTORIZATIONS` sparse LU factorisations of the first network's Jacobian),
+then each goes to the Newton stage's certificate. Each candidate adds
 a history record (stage "guess"), a certified one also the pivot and Newton records; the
 notes say what happened.
 
@@ -25,7 +26,7 @@ import numpy as np
 from ..certification.container_guess import container_candidates
 from ..history import StopReason
 from ..geometry.contact_network import ContactNetwork, network_key
-from ..certification.network_first import (STAGE_PIVOTS, PivotBudget, SettledNetwork,
+from ..certification.network_first import (PivotBudget, SettledNetwork,
                                            settle_candidate)
 from ..certification.network_guess import Candidate, candidate_networks
 from ..certification.newton import Refinement
@@ -78,7 +79,7 @@ def network_first(run: Run, state: LoopState,
                          "(not near a jamming point), so the LP loop ran")
         return state, None
     failures, first_reached = [], None
-    budget = PivotBudget(STAGE_PIVOTS)
+    budget = PivotBudget()
     for candidate in candidates:
         settled, failure, reached = settle_candidate(state.search, candidate, run.d,
                                                      pivots=run.settings.pivots != "off",

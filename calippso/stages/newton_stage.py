@@ -22,15 +22,17 @@ from .state import LoopState, Run
 from .strict_newton_stage import strict_newton
 
 __all__ = ["NewtonOutcome", "newton", "newton_or_pivots", "record_pivots", "TRIED_BEFORE",
-           "INTERIOR_PIVOTS"]
+           "INTERIOR_PIVOTS", "INTERIOR_PIVOT_LPS"]
 
 #: Why a network that the Newton stage refused once is not tried again.
 TRIED_BEFORE = "tried before"
 #: With ``crossover="off"`` the Newton stage runs after every LP: contact pivots repair its
-#: network only when at most this many forces come out non-positive, and take at most this
-#: many pivots (a network further off is left to the next LP, which sees all of it at once,
-#: from where the pivots stopped).
+#: network only when at most this many forces come out non-positive (a network further off
+#: is left to the next LP, which sees all of it at once).
 INTERIOR_PIVOTS = 40
+#: ... and take at most this many times the wall time of the LP just solved: past it, the
+#: next LP, from where the pivots stopped, is the cheaper way on.
+INTERIOR_PIVOT_LPS = 1.0
 
 
 @dataclass(frozen=True)
@@ -132,7 +134,7 @@ def newton_or_pivots(run: Run, state: LoopState,
         forces = refinement.forces
         if np.count_nonzero(forces <= MIN_FORCE_RATIO * forces.max()) > INTERIOR_PIVOTS:
             return state, outcome
-        budget = {"max_pivots": INTERIOR_PIVOTS}
+        budget = {"time_limit": INTERIOR_PIVOT_LPS * run.history.last_step().solver_time}
     path, _ = pivot_to_jamming(state.positions, state.diameters, run.box, network.i,
                                network.j, network.rattlers, refined=refinement, **budget)
     if path is None:
