@@ -127,7 +127,10 @@ CHILD = textwrap.dedent("""
         "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "phi": result.phi, "isostatic": result.isostatic,
         "balance": result.force_balance, "converged": result.converged,
-        "min_gap": smallest_gap, "settled": settled}))
+        "min_gap": smallest_gap, "settled": settled,
+        "stop_reason": str(result.stop_reason.value),
+        "pivots": int(np.nansum(history["pivots"])),
+        "notes": list(result.notes)}))
 """)
 
 
