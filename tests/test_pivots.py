@@ -386,3 +386,47 @@ def test_one_factorisation_serves_the_pivots_that_follow(source):
                         np.column_stack([fresh.i, fresh.j]))
     np.testing.assert_allclose(path.refinement.diameters, fresh.refinement.diameters,
                                rtol=SAME_PHI)
+
+
+def test_a_degenerate_cycle_is_caught_and_bland_chooses_the_leaving_contact(source,
+                                                                               monkeypatch):
+    """A network built to cycle: two vertices A and B of equal Γ, each with a non-positive
+    force, where every pivot from one leads to the other with no growth (a degenerate pivot,
+    simulated). On the degenerate stretch the leaving contact is the non-positive one of
+    smallest pair key (Bland's rule), and the path ends at its return to A, saying so,
+    instead of cycling."""
+    from calippso.certification.pivots import path as pivot_path
+    from calippso.certification.pivots.vertex import Swap, Vertex
+
+    positions, diameters, box = in_mean_diameters(source.packing)
+    stable = ~source.rattlers
+    vertices = []
+    for network in swapped_networks(source, 2, wanted=4):
+        refined = refine_isostatic(positions, diameters, box, network[:, 0], network[:, 1],
+                                   stable)
+        if np.count_nonzero(refined.forces <= 0) >= 2:
+            vertices.append(Vertex(network[:, 0].astype(np.int64),
+                                   network[:, 1].astype(np.int64), stable, refined))
+    if len(vertices) < 2:
+        pytest.skip("fewer than two swapped networks with two non-positive forces")
+    first, second = vertices[:2]
+    released = []
+
+    def degenerate_pivot(search, vertex, leaving, attached=False):
+        released.append((vertex, leaving))
+        other = second if np.array_equal(vertex.keys, first.keys) else first
+        pair = (int(vertex.i[leaving]), int(vertex.j[leaving]))
+        return (other, Swap(pair, (int(other.i[0]), int(other.j[0])), 0.0, 0)), ""
+
+    monkeypatch.setattr(pivot_path, "_pivot", degenerate_pivot)
+    path, failure = pivot_to_jamming(positions, diameters, box, first.i, first.j,
+                                     source.rattlers, refined=first.refinement)
+    assert "cycling" in failure
+    # A -> B is taken; B -> A returns to a network seen since Γ last grew: the path ends at B
+    assert path is not None and not path.jammed and path.degenerate == path.pivots == 1
+    assert len(released) == 2
+    np.testing.assert_array_equal(np.sort(path.i * len(stable) + path.j), np.sort(second.keys))
+    for vertex, leaving in released[1:]:   # after the first degenerate pivot: Bland's rule
+        forces = vertex.refinement.forces
+        non_positive = np.flatnonzero(forces <= 0)
+        assert leaving == non_positive[np.argmin(vertex.keys[non_positive])]
