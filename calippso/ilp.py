@@ -112,7 +112,10 @@ def jam(packing, diameters=None, box=None, *, solver: str = "highs", tol_gamma: 
         Called after every history record (every LP, and the "guess" and "newton" stages) with
         a dict (the record plus "iteration", the LPs solved so far, and "packing"); returning
         True stops the run after an LP or a Newton stage of the loop (the result then has
-        ``converged=False``).
+        ``converged=False``). A path of contact pivots also calls it after every pivot with
+        a provisional record of stage "pivot", kept in no history: "pivots" taken so far,
+        "non_positive" forces left, the pairs "released" and "closed", and the vertex's
+        "packing" (its return value is not read).
     checkpoint : str or PathLike, optional
         File (``.npz``, appended when missing) where the loop's state is saved atomically
         after every LP (`calippso.checkpoint.Checkpoint`). If it exists, the run resumes from

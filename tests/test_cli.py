@@ -199,6 +199,17 @@ def test_lp_bar_ticks_only_for_lp_stages(capfd):
     assert bar.lps == 3 and _bar_count(err) == 3 and "stage=clean-up LP" in err
 
 
+def test_lp_bar_shows_a_pivot_path_as_it_goes(capfd):
+    """A provisional pivot record (stage "pivot") shows the pivots taken and the forces still
+    non-positive beside the bar, and ticks no LP."""
+    bar = LPProgress(True)
+    bar(_record("lp"))
+    bar({**_record("pivot"), "pivots": 7, "non_positive": 3})
+    bar.close()
+    err = capfd.readouterr().err
+    assert bar.lps == 1 and "pivots=7" in err and "non-positive=3" in err
+
+
 def test_quiet_jam_prints_only_the_summary(capfd, tmp_path, start_2d):
     code, out, err = _run(capfd, "jam", start_2d, "-o", tmp_path / "jammed.h5", "--quiet")
     assert code == 0 and "(isostatic)" in out and "LP" not in err

@@ -430,3 +430,28 @@ def test_a_degenerate_cycle_is_caught_and_bland_chooses_the_leaving_contact(sour
         forces = vertex.refinement.forces
         non_positive = np.flatnonzero(forces <= 0)
         assert leaving == non_positive[np.argmin(vertex.keys[non_positive])]
+
+
+def test_a_run_shows_the_pivot_path_as_it_goes(source, monkeypatch, capsys):
+    """After every pivot the callback gets a provisional record (stage "pivot"): the pivots so
+    far, the forces still non-positive (none after the last), the pair released and closed,
+    and the vertex's packing; the history keeps only the path's one "pivots" record. A
+    verbose run prints a line per pivot when `PIVOT_PRINT_SECONDS` allows."""
+    from calippso.stages import newton_stage
+
+    monkeypatch.setattr(newton_stage, "PIVOT_PRINT_SECONDS", 0.0)
+    positions, diameters, box = in_mean_diameters(source.packing)
+    network = swapped_networks(source, 3, wanted=1)[0]
+    vertex = refine_isostatic(positions, diameters, box, network[:, 0], network[:, 1],
+                              ~source.rattlers)
+    start = Packing(vertex.positions, vertex.diameters, box)
+    seen = []
+    result = jam(start, network=network, network_first="require", verbose=True,
+                 callback=seen.append)
+    ticks = [record for record in seen if record["stage"] == "pivot"]
+    taken = int(np.nansum(result.history["pivots"]))
+    assert taken >= 1 and "pivot" not in list(result.history["stage"])
+    assert [tick["pivots"] for tick in ticks] == list(range(1, taken + 1))
+    assert ticks[-1]["non_positive"] == 0
+    assert all(tick["packing"].n == start.n and len(tick["released"]) == 2 for tick in ticks)
+    assert capsys.readouterr().out.count(" pivot ") == taken

@@ -46,6 +46,7 @@ from .certificate import NEWTON_OVERLAP_TOLERANCE
 from .network_guess import CANDIDATE_GAP, Candidate
 from .newton import NEWTON_FAILED, Refinement, refine_isostatic
 from .pivots import PivotPath, pivot_to_jamming
+from .pivots.path import PivotHook
 from .restricted_lp import TOO_FEW, lp_network
 from .sparse_lu import tally
 
@@ -143,7 +144,8 @@ class SettledNetwork:
 
 
 def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
-                     pivots: bool = True, budget: PivotBudget | None = None
+                     pivots: bool = True, budget: PivotBudget | None = None,
+                     on_pivot: PivotHook | None = None
                      ) -> tuple[SettledNetwork | None, str, Refinement | None]:
     """Rounds of restricted LP and Newton from a candidate (module doc).
 
@@ -162,6 +164,8 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         The seconds of pivots allowed (spent as they are taken); a fresh budget, priced on
         the first Newton solve, when omitted. A candidate is refused once the budget is
         spent and its network is not settled.
+    on_pivot : PivotHook, optional
+        Called after every contact pivot (`calippso.certification.pivots.pivot_to_jamming`).
 
     Returns
     -------
@@ -211,7 +215,8 @@ def settle_candidate(search: NeighborSearch, candidate: Candidate, d: int,
         if pivots and not refined.positive and not overlap:
             path, failure = pivot_to_jamming(current.positions, current.diameters,
                                              search.box, i, j, rattlers, refined=refined,
-                                             time_limit=budget.per_path())
+                                             time_limit=budget.per_path(),
+                                             on_pivot=on_pivot)
             budget.spend(path)
             if path is not None:   # the next round starts where the pivots stopped
                 i, j, rattlers, refined = path.i, path.j, path.rattlers, path.refinement

@@ -10,7 +10,9 @@ import sys
 LP_STAGES = frozenset({"lp", "cleanup"})
 #: How the LP bar names each stage; a stage missing here is shown by its own name.
 STAGE_LABELS = {"lp": "LP", "cleanup": "clean-up LP", "newton": "Newton",
-                "guess": "network guess"}
+                "guess": "network guess", "pivots": "pivots"}
+#: The provisional record that a path of contact pivots hands the callback after each pivot.
+PIVOT_STAGE = "pivot"
 
 
 class LPProgress:
@@ -20,8 +22,9 @@ class LPProgress:
     It is a `jam` callback, called once per history record. Only the records of LP stages
     (`LP_STAGES`) tick the bar, so that its count is the number of LPs the summary reports;
     another stage (the Newton stage, the network guess) shows as the "stage" label beside
-    its numbers. The bar appears with the first record, so input rejected before any LP
-    prints no bar.
+    its numbers. A path of contact pivots shows the pivots taken and the forces still
+    non-positive as it goes. The bar appears with the first record, so input rejected
+    before any LP prints no bar.
     """
 
     def __init__(self, enabled: bool, desc: str = "LP") -> None:
@@ -58,6 +61,11 @@ class LPProgress:
 
             self._bar = tqdm(desc=self._desc, unit=" LP", file=sys.stderr)
         stage = str(record["stage"])
+        if stage == PIVOT_STAGE:
+            self._bar.set_postfix({"stage": "pivots", "pivots": int(record["pivots"]),
+                                   "non-positive": int(record["non_positive"])},
+                                  refresh=False)
+            return
         self._bar.set_postfix(
             {
                 "stage": STAGE_LABELS.get(stage, stage),

@@ -31,7 +31,7 @@ from ..certification.network_first import (PivotBudget, SettledNetwork,
 from ..certification.network_guess import Candidate, candidate_networks
 from ..certification.newton import Refinement
 from ..geometry.rattlers import remove_rattlers, separate_rattlers
-from .newton_stage import newton, record_pivots
+from .newton_stage import newton, pivot_progress, record_pivots
 from .state import LoopState, Run
 
 __all__ = ["Certified", "network_first", "fallback_start", "MAX_NETWORK_GUESSES"]
@@ -83,7 +83,8 @@ def network_first(run: Run, state: LoopState,
     for candidate in candidates:
         settled, failure, reached = settle_candidate(state.search, candidate, run.d,
                                                      pivots=run.settings.pivots != "off",
-                                                     budget=budget)
+                                                     budget=budget,
+                                                     on_pivot=pivot_progress(run))
         if first_reached is None and reached is not None:
             first_reached = (reached, candidate.near_gap)
         _record_guess(run, state, candidate, settled, time.perf_counter() - start)

@@ -17,13 +17,19 @@ import numpy as np
 from ..certification.certificate import certify_network
 from ..geometry.contact_network import ContactNetwork
 from ..certification.newton import MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, refine_isostatic
-from ..certification.pivots import PivotPath, describe_path, pivot_to_jamming
+from ..certification.pivots import PivotPath, Swap, describe_path, pivot_to_jamming
+from ..certification.pivots.path import PivotHook
+from ..geometry.contacts import isostaticity_gap
+from ..history import Record
 from .state import LoopState, Run
 from .strict_newton_stage import strict_newton
 
-__all__ = ["NewtonOutcome", "newton", "newton_or_pivots", "record_pivots", "TRIED_BEFORE",
+__all__ = ["NewtonOutcome", "newton", "newton_or_pivots", "record_pivots", "pivot_progress",
+           "TRIED_BEFORE", "PIVOT_PRINT_SECONDS",
            "INTERIOR_PIVOTS", "INTERIOR_PIVOT_LPS"]
 
+#: A verbose run prints a line on a path of contact pivots at most this often (seconds).
+PIVOT_PRINT_SECONDS = 5.0
 #: Why a network that the Newton stage refused once is not tried again.
 TRIED_BEFORE = "tried before"
 #: With ``crossover="off"`` the Newton stage runs after every LP: contact pivots repair its
@@ -136,7 +142,8 @@ def newton_or_pivots(run: Run, state: LoopState,
             return state, outcome
         budget = {"time_limit": INTERIOR_PIVOT_LPS * run.history.last_step().solver_time}
     path, _ = pivot_to_jamming(state.positions, state.diameters, run.box, network.i,
-                               network.j, network.rattlers, refined=refinement, **budget)
+                               network.j, network.rattlers, refined=refinement,
+                               on_pivot=pivot_progress(run), **budget)
     if path is None:
         return state, outcome
     if not path.jammed:
@@ -174,3 +181,40 @@ def record_pivots(run: Run, path: PivotPath, note: str | None = None) -> None:
         n_stable=int((~path.rattlers).sum()), min_gap=float("nan"), phi=moved.phi)
     run.history.note(describe_path(path) if note is None else note)
     run.report(record, moved, run.history.lps_solved)
+
+
+def pivot_progress(run: Run) -> PivotHook | None:
+    """The run's view of a path of contact pivots as it goes: after every pivot, the
+    callback gets a provisional record (stage "pivot", kept in no history: the pivots so far
+    in "pivots", the vertex's contacts and φ, and the keys "non_positive", "released" and
+    "closed"); a verbose run prints a line at most every `PIVOT_PRINT_SECONDS`. None when the
+    run has neither."""
+    if run.callback is None and not run.history.verbose:
+        return None
+    began = time.perf_counter()
+    printed = [began]
+
+    def on_pivot(pivots: int, swap: Swap, vertex: Refinement, stable: np.ndarray) -> None:
+        n_stable = int(stable.sum())
+        n_contacts = run.d * (n_stable - 1) + 1
+        now = time.perf_counter()
+        if run.history.verbose and now - printed[0] >= PIVOT_PRINT_SECONDS:
+            printed[0] = now
+            print(f"     pivot {pivots}: {swap.non_positive} force(s) non-positive, "
+                  f"released {swap.released}, closed {swap.closed}, {now - began:.1f} s",
+                  flush=True)
+        if run.callback is None:
+            return
+        packing = run.packing_of(vertex.positions, vertex.diameters)
+        record = Record(
+            stage="pivot", wall_time=run.history.elapsed(), solver_time=now - began,
+            sqrt_gamma_minus_1=float("nan"), max_displacement=float("nan"), rows=n_contacts,
+            step_bound=float("nan"), n_contacts=n_contacts,
+            isostaticity_gap=isostaticity_gap(n_contacts, n_stable, run.d,
+                                              run.history.zero_modes),
+            force_balance=float("nan"), min_gap=float("nan"), phi=packing.phi, pivots=pivots)
+        run.callback({**record.as_dict(), "iteration": run.history.lps_solved,
+                      "packing": packing, "non_positive": swap.non_positive,
+                      "released": swap.released, "closed": swap.closed})
+
+    return on_pivot

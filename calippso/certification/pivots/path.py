@@ -5,6 +5,7 @@ the first pair, and repeat until every force is positive (`pivot_to_jamming`).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -22,9 +23,12 @@ from .geometry import (NEAR_GAP, RATIO_CANDIDATES, closing_rates, find_closing_p
                        outside_pairs, rattlers_out_of_the_way, refined_solve)
 from .vertex import DEGENERATE_STEP, Basis, PivotPath, Swap, Vertex
 
-__all__ = ["pivot_to_jamming", "MAX_PIVOTS", "REJOIN_TRIES", "CAGE_CLOSED",
+__all__ = ["pivot_to_jamming", "PivotHook", "MAX_PIVOTS", "REJOIN_TRIES", "CAGE_CLOSED",
            "SINGULAR_RELEASE", "LEAVING_TRIES"]
 
+#: Called after every pivot with the number of pivots taken, the pivot, the vertex it
+#: reached (its Newton solution) and that vertex's stable particles.
+PivotHook = Callable[[int, Swap, Refinement, np.ndarray], None]
 #: Pivots taken at most before the path gives up (a network a few contacts off takes a few
 #: to a few tens).
 MAX_PIVOTS = 500
@@ -50,7 +54,8 @@ SINGULAR_GROWTH = 1e-13
 def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
                      i: np.ndarray, j: np.ndarray, rattlers: np.ndarray,
                      refined: Refinement | None = None, max_pivots: int = MAX_PIVOTS,
-                     time_limit: float | None = None) -> tuple[PivotPath | None, str]:
+                     time_limit: float | None = None, on_pivot: PivotHook | None = None
+                     ) -> tuple[PivotPath | None, str]:
     """Pivot from an isostatic network to the jamming point (module doc).
 
     Parameters
@@ -69,6 +74,8 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
         Pivots taken at most.
     time_limit : float, optional
         Seconds the path may take: no pivot starts after them (the one under way ends).
+    on_pivot : PivotHook, optional
+        Called after every pivot (a run's progress: `calippso.stages.newton_stage.pivot_progress`).
 
     Returns
     -------
@@ -82,13 +89,14 @@ def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarr
     """
     with tally() as cost:
         path, failure = _follow(positions, diameters, box, i, j, rattlers, refined,
-                                max_pivots, time_limit)
+                                max_pivots, time_limit, on_pivot)
     return (None if path is None else replace(path, cost=cost)), failure
 
 
 def _follow(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np.ndarray,
             j: np.ndarray, rattlers: np.ndarray, refined: Refinement | None, max_pivots: int,
-            time_limit: float | None) -> tuple[PivotPath | None, str]:
+            time_limit: float | None, on_pivot: PivotHook | None
+            ) -> tuple[PivotPath | None, str]:
     """`pivot_to_jamming` without its tally."""
     began = time.perf_counter()
     i, j = np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64)
@@ -150,6 +158,8 @@ def _follow(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np
                              non_positive=int(np.count_nonzero(
                                  forces <= MIN_FORCE_RATIO * float(forces.max())))))
         vertex = next_vertex
+        if on_pivot is not None:
+            on_pivot(len(swaps), swaps[-1], vertex.refinement, vertex.stable)
 
 
 def _pivot(search: NeighborSearch, vertex: Vertex, released: int,
