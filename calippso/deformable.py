@@ -40,11 +40,13 @@ find no image across a wall. A container without a periodic axis has no strain a
 refused.
 
 This module holds what is the box's: the strain variables and their columns
-(`strained_lp`), the rows of a step in a sheared cell (`select_rows`), the strain's share
-of an LP's answer (`analyse_strained`), the stress (`contact_stress`, `certificate_note`)
-and the strict certificate (`strict_category`). The loop's stages run it: the LP step
+(`strained_lp`), the rows of a step in a sheared cell (`select_rows`), and the strain's share
+of an LP's answer (`analyse_strained`). The loop's stages run it: the LP step
 (`calippso.stages.lp_step`), the strict Newton stage
 (`calippso.stages.strict_newton_stage`) and the finish (`calippso.stages.strict_finish`).
+The finish reads the contact stress (`calippso.geometry.contacts.contact_stress`), the strain
+certificate of the last LP and the strict certificate
+(`calippso.certification.strict_certificate`).
 """
 
 from __future__ import annotations
@@ -55,23 +57,18 @@ import numpy as np
 import scipy.sparse as sp
 
 from .geometry.boundaries import Boundaries
-from .geometry.contacts import stress_reading
-from .geometry.packing import Packing
 from .geometry.sheared_search import half_shortest_vector, sheared_pairs_within
 from .geometry.walls import WallRows, empty_walls, wall_rows_within
-from .history import History
 from .lp import LinearProgram, build_lp
 from .geometry.neighbors import Pairs
-from .result import JammingResult
 from .settings import JamSettings
 from .solvers import LPSolution
 from .step import BINDING_REDUCED_COST, Step, analyse, at_bound
 
 __all__ = ["strain_count", "strict_zero_modes", "check_strainable", "strain_matrix",
            "strain_coefficients", "strained_lp", "select_rows", "container_walls",
-           "analyse_strained", "median_gap", "smallest_gap", "contact_stress",
-           "certificate_note", "strict_category", "floppy_strict_rows",
-           "DEFORMABLE_NOTE", "INITIAL_STEP_FLOOR"]
+           "analyse_strained", "median_gap", "smallest_gap", "DEFORMABLE_NOTE",
+           "INITIAL_STEP_FLOOR"]
 
 #: The note every deformable run carries.
 DEFORMABLE_NOTE = ("deformable box: the LP loop with the strain columns and the strict Newton "
@@ -87,13 +84,8 @@ INITIAL_STEP_FLOOR = 1.6e-2
 #: Bound on every strain variable per unit of b / W, with b the step bound and W the longest
 #: box vector: the strain then moves a centre by a few b at most, relative to the pinned one.
 STRAIN_BOUND = 1.0
-#: The strict rows have a floppy mode when the smallest eigenvalue of AᵀA is below this
-#: times its mean diagonal (as `calippso.categories.FLOPPY_EIGENVALUE`).
-FLOPPY_EIGENVALUE = 1e-12
 #: `smallest_gap` looks at the walls within this many radii of a centre.
 NEAR_WALL = 1.01
-#: Up to this many columns the stiffness spectrum is computed densely.
-DENSE_STIFFNESS = 200
 
 
 def strain_count(d: int) -> int:
@@ -307,123 +299,3 @@ def smallest_gap(positions: np.ndarray, diameters: np.ndarray, matrix: np.ndarra
         return gap
     return min(gap, container_walls(positions, diameters, boundaries, box,
                                     growth=NEAR_WALL).smallest_gap())
-
-
-def contact_stress(vectors: np.ndarray, forces: np.ndarray, volume: float) -> np.ndarray:
-    """Σ_k f_k |r_k| n_k n_kᵀ / V over the contacts, shape (d, d)."""
-    distances = np.linalg.norm(vectors, axis=1)
-    stress = np.einsum("k,ka,kb->ab", forces / distances, vectors, vectors) / volume
-    return 0.5 * (stress + stress.T)
-
-
-def certificate_note(lp: LinearProgram, solution: LPSolution, stress: np.ndarray,
-                     periodic: np.ndarray) -> str:
-    """The strain certificate of the last LP: the anisotropy of its own contact stress
-    Σ μ r rᵀ/|r| (over every pair row) on the `periodic` axes (shape (d,), bool), and its
-    pressure against the volume's multiplier (the reduced cost of the trace column); then
-    that of the final forces (`stress`)."""
-    pairs = lp.pairs
-    duals = solution.duals[:len(pairs)]
-    lp_stress = np.einsum("k,ka,kb->ab", duals / pairs.distances, pairs.vectors,
-                          pairs.vectors)
-    lp_pressure, lp_anisotropy = stress_reading(lp_stress, periodic)
-    volume_multiplier = float((lp.matrix.T @ solution.duals)[lp.n_cols - 2])
-    if not lp_pressure > 0:
-        return "strain certificate: the last LP has no contact stress"
-    mismatch = abs(volume_multiplier - lp_pressure) / lp_pressure
-    final_anisotropy = stress_reading(stress, periodic)[1]
-    return (f"strain certificate of the last LP: stress anisotropy {lp_anisotropy:.1e}, volume "
-            f"multiplier = virial pressure to {mismatch:.1e}; final forces: stress "
-            f"anisotropy {final_anisotropy:.1e}")
-
-
-def strict_category(packing: Packing, i: np.ndarray, j: np.ndarray, forces: np.ndarray,
-                    rattlers: np.ndarray, history: History,
-                    wall_contacts: np.ndarray | None = None) -> str | None:
-    """The jamming category of the final packing: "strict" from the network's own
-    certificate (`floppy_strict_rows`), else from the linear test of `calippso.categories`
-    on the network and every other pair that touches (a note when it is not "strict");
-    None when that test could not decide (a note says why). `forces` (M + K,) hold the
-    pair forces, then those of `wall_contacts` ((K, 2) particle, wall; none by default).
-
-    The certificate: the forces are positive on every contact and in balance with an
-    isotropic stress of positive pressure, so by Stiemke's theorem no first-order motion of
-    the strict test opens a contact; when the strict rows have no floppy mode either, the
-    packing is strictly jammed (docs/theory.md, Jamming categories).
-    """
-    walls = np.zeros((0, 2), np.int64) if wall_contacts is None else wall_contacts
-    if np.all(forces > 0) and not floppy_strict_rows(packing, i, j, rattlers, walls):
-        history.note("strictly jammed: positive forces with an isotropic stress, and no "
-                     "floppy mode of the strict rows")
-        return "strict"
-    from .categories import jamming_category
-    from .geometry.touching import touching_outside_network
-
-    contacts = np.stack([i, j], axis=1)
-    touching = touching_outside_network(packing, contacts, rattlers, walls)
-    every = JammingResult(packing=packing, contacts=np.concatenate([contacts, touching.pairs]),
-                          forces=np.zeros(0), rattlers=rattlers, converged=False, status="",
-                          iterations=0,
-                          wall_contacts=np.concatenate([walls, touching.walls]))
-    try:
-        category = jamming_category(every, up_to="strict")
-    except (RuntimeError, ValueError) as error:   # the test's LP failed, or a refusal
-        history.note(f"strict jamming not verified: {error}")
-        return None
-    if category.category == "strict" and not np.all(forces > 0):
-        history.note("strictly jammed by the linear test; the balanced forces found on the "
-                     "network are not all positive, so they are no certificate of it")
-    if category.category != "strict":
-        what = "opens contacts" if category.opens_contacts else "keeps every contact closed"
-        history.note(f"the linear test of strict jamming found an unjamming motion that "
-                     f"{what} (failed class: {category.failed}): not strictly jammed")
-    return category.category
-
-
-def floppy_strict_rows(packing: Packing, i: np.ndarray, j: np.ndarray, rattlers: np.ndarray,
-                       wall_contacts: np.ndarray) -> bool:
-    """Whether the strict rows of the network (the contacts with the strain columns of the
-    periodic axes, the wall contacts ((K, 2) particle, wall), and the volume row) have a
-    floppy mode: a motion of the stable particles (the container's zero modes pinned,
-    `calippso.certification.newton.pinned_coordinates`) and the strain that keeps every
-    row at zero. The smallest eigenvalue of AᵀA is zero, up to `FLOPPY_EIGENVALUE` × its
-    mean diagonal, exactly when one exists."""
-    from scipy.sparse.linalg import eigsh
-
-    from .certification.newton import pinned_coordinates
-    from .geometry.walls import wall_rows_of
-
-    n, d, boundaries = packing.n, packing.d, packing.boundaries
-    k = strain_count(boundaries.n_periodic)
-    stable = np.flatnonzero(~rattlers)
-    column = np.full(n, -1, dtype=np.int64)
-    column[stable] = d * np.arange(stable.size)
-    vectors = packing.minimum_image(packing.positions[i] - packing.positions[j])
-    distances = np.linalg.norm(vectors, axis=1)
-    normals = vectors / distances[:, None]
-    walls = wall_rows_of(packing.positions, packing.diameters, packing.box, wall_contacts[:, 0],
-                         wall_contacts[:, 1], boundaries.cylinder_axes)
-    m, n_walls, n_moves = i.shape[0], len(walls), d * stable.size
-    axis = np.arange(d)
-    rows = np.concatenate([np.repeat(np.arange(m), d), np.repeat(np.arange(m), d),
-                           m + np.repeat(np.arange(n_walls), d),
-                           np.repeat(np.arange(m), k), [m + n_walls]])
-    cols = np.concatenate([(column[i][:, None] + axis).ravel(),
-                           (column[j][:, None] + axis).ravel(),
-                           (column[walls.particle][:, None] + axis).ravel(),
-                           np.tile(n_moves + np.arange(k), m), [n_moves + k - 1]])
-    values = np.concatenate([normals.ravel(), -normals.ravel(), walls.normals.ravel(),
-                             strain_coefficients(vectors, distances,
-                                                 boundaries.periodic).ravel(), [-1.0]])
-    matrix = sp.csr_matrix((values, (rows, cols)), shape=(m + n_walls + 1, n_moves + k))
-    pinned = pinned_coordinates(packing.positions, packing.box, ~rattlers, boundaries)
-    held = (column[:, None] + axis)[pinned]
-    free = np.setdiff1d(np.arange(n_moves + k), held)    # the container's zero modes
-    stiffness = (matrix[:, free].T @ matrix[:, free]).tocsc()
-    scale = float(stiffness.diagonal().mean())
-    if free.size <= DENSE_STIFFNESS:
-        smallest = float(np.linalg.eigvalsh(stiffness.toarray())[0])
-    else:
-        smallest = float(eigsh(stiffness, k=1, sigma=-1e-3 * FLOPPY_EIGENVALUE * scale,
-                               which="LM", return_eigenvectors=False)[0])
-    return smallest <= FLOPPY_EIGENVALUE * scale

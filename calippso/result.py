@@ -270,17 +270,17 @@ class JammingResult:
     def contact_stress(self) -> np.ndarray | None:
         """The contact stress tensor Σ_k f_k |r_k| n_k n_kᵀ / V, shape (d, d) (forces of
         mean 1, per unit volume): `stress` when the run set it, otherwise computed from
-        `contacts` and `forces` in a periodic box. None in a container (the walls carry
-        part of the load) or without one force per contact."""
+        `contacts` and `forces` in a periodic box (`calippso.geometry.contacts.contact_stress`).
+        None in a container (the walls carry part of the load) or without one force per
+        contact."""
         if self.stress is not None:
             return self.stress
         if (not self.packing.boundaries.is_periodic or not self.contacts.shape[0]
                 or self.forces.shape[0] != self.contacts.shape[0]):
             return None
-        vectors = self.contact_vectors
-        distances = np.linalg.norm(vectors, axis=1)
-        stress = np.einsum("k,ka,kb->ab", self.forces / distances, vectors, vectors)
-        return 0.5 * (stress + stress.T) / self.packing.volume
+        from .geometry.contacts import contact_stress
+
+        return contact_stress(self.contact_vectors, self.forces, self.packing.volume)
 
     @property
     def pressure(self) -> float:

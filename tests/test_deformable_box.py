@@ -117,7 +117,8 @@ import lattices  # noqa: E402
 from configurations import ls_packing  # noqa: E402
 
 from calippso import StopReason, jam, jamming_category  # noqa: E402
-from calippso.deformable import floppy_strict_rows, strict_zero_modes  # noqa: E402
+from calippso.certification.strict_certificate import floppy_strict_rows  # noqa: E402
+from calippso.deformable import strict_zero_modes  # noqa: E402
 
 #: Round-off tolerances of the checks (relative to the diameters, and to the mean force).
 OVERLAP_TOLERANCE = 1e-12

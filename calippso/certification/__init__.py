@@ -13,7 +13,8 @@ contacts, rattlers) lies below it, and the LP with its solvers beside it.
    `strict_newton` (deformable box), on the sparse LU of `sparse_lu`.
 4. **Repair** a network a few contacts off: `pivots` (contact pivots on the exact geometry).
 5. **Certify**: positive forces, no other overlap, isostatic, force balance
-   (`certificate`).
+   (`certificate`); in a deformable box, strict jamming and the last LP's strain
+   certificate (`strict_certificate`).
 
 `network_first` runs steps 1–4 in rounds on an input's own network, with no LP.
 """

@@ -1,4 +1,4 @@
-"""From LP duals to the contact network: contacts, forces, isostaticity, balance.
+"""From LP duals to the contact network: contacts, forces, stress, isostaticity, balance.
 
 `remove_rattlers` lives in `calippso.geometry.rattlers` (the generators use it too); it is imported
 here as well, for the modules that take it from this one.
@@ -12,7 +12,7 @@ from .rattlers import remove_rattlers
 
 __all__ = ["contact_mask", "remove_rattlers", "net_forces", "force_balance",
            "isostaticity_gap", "equilibrium_matrix", "polish_forces", "positive_self_stress",
-           "stress_reading"]
+           "contact_stress", "stress_reading"]
 
 #: `positive_self_stress` takes forces as balanced when the largest net force is below this
 #: times the largest force.
@@ -214,6 +214,23 @@ def positive_self_stress(n: int, i: np.ndarray, j: np.ndarray, normals: np.ndarr
     low = uniform < floor
     mix = float(np.max((floor - uniform[low]) / (widest[low] - uniform[low])))
     return uniform + min(mix, 1.0) * (widest - uniform)
+
+
+def contact_stress(vectors: np.ndarray, forces: np.ndarray, volume: float) -> np.ndarray:
+    """The contact stress tensor Σ_k f_k |r_k| n_k n_kᵀ / V, shape (d, d), symmetric.
+
+    Parameters
+    ----------
+    vectors : ndarray, shape (M, d)
+        Contact vectors r_k (length units).
+    forces : ndarray, shape (M,)
+        Contact forces f_k (any force unit).
+    volume : float
+        Box volume V (length units^d); 1 gives the stress's sum unscaled.
+    """
+    distances = np.linalg.norm(vectors, axis=1)
+    stress = np.einsum("k,ka,kb->ab", forces / distances, vectors, vectors) / volume
+    return 0.5 * (stress + stress.T)
 
 
 def stress_reading(stress: np.ndarray, periodic: np.ndarray) -> tuple[float, float]:

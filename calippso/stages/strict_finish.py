@@ -5,19 +5,19 @@ A network certified by the strict Newton stage keeps its forces when they balanc
 final geometry. Otherwise the last LP's network and forces are projected onto the forces in
 equilibrium with an isotropic stress at the final positions
 (`calippso.stages.strict_forces.balanced_network`), and a run that converged is tested for
-strict jamming (`calippso.deformable.strict_category`). Round-off overlaps (with walls too,
-in a container) are shrunk away first; forces are scaled to mean 1, the wall contacts'
-included.
+strict jamming (`calippso.certification.strict_certificate.strict_category`). Round-off
+overlaps (with walls too, in a container) are shrunk away first; forces are scaled to mean 1,
+the wall contacts' included.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..deformable import certificate_note, contact_stress, smallest_gap, strict_category
-from ..deformable import strict_zero_modes
+from ..certification.strict_certificate import certificate_note, strict_category
+from ..deformable import smallest_gap, strict_zero_modes
 from ..geometry.contact_network import ROUNDOFF_SHRINK_MARGIN, ContactNetwork
-from ..geometry.contacts import isostaticity_gap
+from ..geometry.contacts import contact_stress, isostaticity_gap
 from ..geometry.packing import Packing
 from ..history import StopReason, status_sentence
 from ..result import JammingResult
