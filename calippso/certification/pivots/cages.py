@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ...geometry.neighbors import NeighborSearch, Pairs
-from .geometry import RATTLER_REACH
+from .geometry import RATTLER_REACH, closing_rates
 
 __all__ = ["CageClosure", "closing_cages", "CAGE_GAP", "CAGE_LINEARISATIONS"]
 
@@ -95,7 +95,7 @@ def closing_cages(search: NeighborSearch, stable: np.ndarray, mode: np.ndarray,
     cluster = _clusters(cage, stable)
     of_pair = np.where(stable[cage.i], cluster[cage.j], cluster[cage.i])
     # rattlers standing still are free until their first pair closes: no earlier closure
-    rates = _rates(cage, _cage_motion(stable, mode))
+    rates = closing_rates(cage, _cage_motion(stable, mode))
     standing = np.full(len(cage), np.inf)
     closing = rates < 0
     standing[closing] = np.maximum(_phi(cage.vectors[closing], cage.sigma[closing]),
@@ -131,12 +131,6 @@ def _clusters(cage: Pairs, stable: np.ndarray) -> np.ndarray:
 def _phi(vectors: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """Φ = |r|²/σ² − 1 of each pair, shape (P,)."""
     return np.einsum("pd,pd->p", vectors, vectors) / sigma**2 - 1.0
-
-
-def _rates(pairs: Pairs, motion: np.ndarray) -> np.ndarray:
-    """dΦ/dt of each pair under a motion per unit step (shape (N, d)), shape (P,)."""
-    relative = motion[pairs.i] - motion[pairs.j]
-    return 2.0 * np.einsum("pd,pd->p", pairs.vectors, relative) / pairs.sigma**2 - 1.0
 
 
 def _cage_motion(stable: np.ndarray, mode: np.ndarray) -> np.ndarray:
