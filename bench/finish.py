@@ -21,7 +21,10 @@ the path by low-rank updates would need. Run from the repository root (2 cores, 
 Columns: N, seed, quench pressure, start, non-positive forces at the start, pivots
 (degenerate), how the path ended, its seconds, the median seconds of one pivot, sparse LU
 factorisations and their seconds, solves and their seconds, the rest (geometry: neighbour
-searches, ratio tests, rattlers), and the non-positive forces left at the end.
+searches, ratio tests, rattlers), and the non-positive forces left at the end. A
+network-first row that settles also prints how far the first path's start was from the
+settled network (its contacts that left, the pairs that entered) against the distinct
+contacts the paths released and how many of those they closed again.
 """
 
 from __future__ import annotations
@@ -104,10 +107,11 @@ def network_first_rounds(packing: calippso.Packing, hint: np.ndarray,
     search = NeighborSearch(packing.positions / scale, packing.diameters / scale,
                             packing.box / scale)
     candidate = candidate_networks(search, packing.d, check_network_hint(hint, packing.n))[0]
-    paths, refused = [], []
+    paths, refused, starts = [], [], []
     began = time.perf_counter()
 
     def unbudgeted(*arguments, refined=None, **budget):
+        starts.append(_keys(arguments[3], arguments[4], packing.n))
         left = max(time_limit - (time.perf_counter() - began), 0.0)
         path, failure = pivot_to_jamming(*arguments, refined=refined, max_pivots=UNLIMITED,
                                          time_limit=left)
@@ -139,8 +143,27 @@ def network_first_rounds(packing: calippso.Packing, hint: np.ndarray,
                    path_endings=[failure or "jammed" for _, _, failure in paths],
                    non_positive_trail=[swap.non_positive for swap in swaps],
                    non_positive_end=swaps[-1].non_positive if swaps else paths[-1][0])
+        row.update(_distance(starts[0], settled, swaps, packing.n))
     elif refused:
         row["non_positive_start"] = refused[0][0]
+    return row
+
+
+def _keys(i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
+    return np.asarray(i, dtype=np.int64) * n + np.asarray(j, dtype=np.int64)
+
+
+def _distance(start: np.ndarray, settled, swaps, n: int) -> dict:
+    """How far the first path's start network is from the settled one (contacts of the start
+    that left, pairs that entered), against what the paths did: the distinct contacts they
+    released, and how many of those were closed again later."""
+    released = {pair[0] * n + pair[1] for pair in (swap.released for swap in swaps)}
+    closed = {pair[0] * n + pair[1] for pair in (swap.closed for swap in swaps)}
+    row = {"released_distinct": len(released), "released_then_closed": len(released & closed)}
+    if settled is not None:
+        end = _keys(settled.i, settled.j, n)
+        row.update(left=int(np.setdiff1d(start, end).size),
+                   entered=int(np.setdiff1d(end, start).size))
     return row
 
 
@@ -252,6 +275,11 @@ def main() -> None:
                       args.stale)
             rows.append(row)
             print(line(row), flush=True)
+            if "released_distinct" in row:
+                print(f"{'':>32} start to end: {row.get('left', '-')} contacts left, "
+                      f"{row.get('entered', '-')} entered; the paths released "
+                      f"{row['released_distinct']} distinct contacts, "
+                      f"{row['released_then_closed']} of them closed again", flush=True)
             if "stale_refinement_error" in row:
                 print(f"{'':>32} stale factors one pivot later: Jacobian entries change by "
                       f"{row['jacobian_change']:.1e} (relative); backward error after "
