@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 
 from .periodic import minimum_image, wrap
 
-__all__ = ["Pairs", "NeighborSearch", "pairs_within", "close_pairs", "min_gap", "contact_shrink",
+__all__ = ["Pairs", "PairList", "NeighborSearch", "pairs_within", "close_pairs", "min_gap", "contact_shrink",
            "shrink_to_margin", "check_no_duplicates", "CONTACT_MARGIN", "NEAR_CONTACT_SLACK",
            "SAME_PLACE"]
 
@@ -73,6 +73,27 @@ class Pairs:
                      self.sigma[mask])
 
 
+@dataclass(frozen=True, eq=False)
+class PairList:
+    """Every pair of one configuration within a cutoff (a Verlet list), to answer the pair
+    queries of nearby configurations without a new tree (`NeighborSearch`).
+
+    Attributes
+    ----------
+    positions : ndarray, shape (N, d)
+        The wrapped centres the list was made at.
+    cutoff : float
+        Largest centre distance listed, length units.
+    i, j : ndarray, shape (M,), int64
+        The listed pairs, i < j, sorted by (i, j).
+    """
+
+    positions: np.ndarray
+    cutoff: float
+    i: np.ndarray
+    j: np.ndarray
+
+
 class NeighborSearch:
     """A periodic KD-tree over one configuration, for repeated pair queries.
 
@@ -85,18 +106,48 @@ class NeighborSearch:
     periodic : ndarray, shape (d,), bool, optional
         Periodic axes; None: all of them. Positions along the other axes are taken as they
         are (inside [0, L]).
+    pair_list : PairList, optional
+        The pairs of a nearby configuration within a larger cutoff: a query up to that cutoff
+        less twice the largest displacement since is answered from the list (a pair that is
+        closer than c now was closer than c + 2 × that displacement then), others by the tree.
     """
 
     def __init__(self, positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
-                 periodic: np.ndarray | None = None):
+                 periodic: np.ndarray | None = None, pair_list: PairList | None = None):
         self.box = np.asarray(box, dtype=np.float64)
         self.periodic = None if periodic is None or np.all(periodic) else np.asarray(
             periodic, dtype=bool)
         self.positions = wrap(np.asarray(positions, dtype=np.float64), self.box, self.periodic)
         self.diameters = np.asarray(diameters, dtype=np.float64)
         self.d = self.positions.shape[1]
-        self._tree = cKDTree(self.positions, boxsize=self.periodic_sides)
+        self._kd_tree: cKDTree | None = None
         self._nearest: tuple[np.ndarray, np.ndarray] | None = None
+        self.listed = pair_list
+        self._drift: float | None = None
+
+    @property
+    def _tree(self) -> cKDTree:
+        """The KD-tree, built on first use (a search served by its pair list needs none)."""
+        if self._kd_tree is None:
+            self._kd_tree = cKDTree(self.positions, boxsize=self.periodic_sides)
+        return self._kd_tree
+
+    def pair_list(self, cutoff: float) -> PairList:
+        """The pairs of this configuration within `cutoff` (length units), for the searches
+        of configurations near it."""
+        pairs = self.pairs_within(cutoff)
+        return PairList(self.positions, float(cutoff), pairs.i, pairs.j)
+
+    def listed_reach(self) -> float:
+        """The largest cutoff that the pair list answers (0 without one): its cutoff less
+        twice the largest displacement of a centre since it was made."""
+        if self.listed is None:
+            return 0.0
+        if self._drift is None:
+            moved = minimum_image(self.positions - self.listed.positions, self.box,
+                                  self.periodic)
+            self._drift = float(np.sqrt(np.einsum("nd,nd->n", moved, moved)).max(initial=0.0))
+        return self.listed.cutoff - 2.0 * self._drift
 
     @property
     def periodic_sides(self) -> np.ndarray:
@@ -124,6 +175,9 @@ class NeighborSearch:
                 f"pair cutoff {cutoff:g} is not below half the smallest periodic box side "
                 f"{2 * self.half_period:g}"
             )
+        if cutoff <= self.listed_reach():
+            listed = self.pairs_of(self.listed.i, self.listed.j)
+            return listed.subset(listed.distances <= cutoff)
         ij = self._tree.query_pairs(cutoff, output_type="ndarray").astype(np.int64, copy=False)
         if ij.shape[0]:
             ij.sort(axis=1)

@@ -11,14 +11,14 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from ...geometry.neighbors import NeighborSearch
+from ...geometry.neighbors import NeighborSearch, PairList
 from ..certificate import NEWTON_OVERLAP_TOLERANCE
 from ..newton import (MIN_FORCE_RATIO, NEWTON_FAILED, Refinement, network_jacobian,
                       refine_isostatic)
 from ...geometry.packing import minimum_image
 from ...geometry.rattlers import remove_rattlers
 from ..sparse_lu import Factors, factorize, tally
-from .cages import CageClosure, closing_cages
+from .cages import CAGE_GAP, CageClosure, closing_cages
 from .geometry import (NEAR_GAP, RATIO_CANDIDATES, closing_rates, find_closing_pairs,
                        outside_pairs, rattlers_out_of_the_way, refined_solve)
 from .vertex import DEGENERATE_STEP, Basis, PivotPath, Swap, Vertex
@@ -49,6 +49,14 @@ LEAVING_TRIES = 5
 #: J⁻¹ e_c (minus the released force) is above this, relative to the largest component:
 #: below, it is round-off of a zero (a redundant contact, a singular released network).
 SINGULAR_GROWTH = 1e-13
+#: The pair queries of a pivot reach relative gaps up to the cage test's (the ratio test's
+#: first reading, `NEAR_GAP`, and the pairs near contact lie within it; its widened
+#: readings fall back to the tree) ...
+LISTED_QUERY_GAP = CAGE_GAP
+#: ... and the path keeps every pair within twice that of a vertex, so that the list serves
+#: until a particle has moved by a quarter of it (rattlers pushed by their cages move most,
+#: up to `geometry.RATTLER_REACH` a pivot).
+LISTED_GAP = 2.0 * CAGE_GAP
 
 
 def pivot_to_jamming(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
@@ -116,6 +124,7 @@ def _follow(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np
     vertex = Vertex(i, j, stable, refined, basis)
     seen = {_network_digest(vertex)}
     degenerate = False
+    pair_list = None
 
     def ended(jammed: bool) -> PivotPath:
         return PivotPath(vertex.i, vertex.j, ~vertex.stable,
@@ -124,7 +133,7 @@ def _follow(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray, i: np
                          tuple(swaps), time.perf_counter() - began, jammed)
 
     while True:
-        search = NeighborSearch(vertex.refinement.positions, vertex.refinement.diameters, box)
+        search, pair_list = _search_at(vertex.refinement, box, pair_list)
         overlapping = int(np.sum(outside_pairs(search, vertex.keys, vertex.stable, NEAR_GAP).gaps
                                  < -NEWTON_OVERLAP_TOLERANCE))
         if overlapping:
@@ -274,7 +283,8 @@ def _vertex_at(search: NeighborSearch, vertex: Vertex, refined: Refinement | Non
         i_new, j_new = i_new[kept], j_new[kept]
         refined = replace(refined, forces=refined.forces[kept])
     now_stable = ~now_rattlers
-    moved = NeighborSearch(refined.positions, refined.diameters, search.box)
+    moved = NeighborSearch(refined.positions, refined.diameters, search.box,
+                           pair_list=search.listed)
     if np.any(outside_pairs(moved, i_new * n + j_new, now_stable,
                             NEAR_GAP).gaps < -NEWTON_OVERLAP_TOLERANCE):
         return "another pair overlaps"
@@ -308,6 +318,24 @@ def _enter_cage(search: NeighborSearch, vertex: Vertex, i_a: np.ndarray, j_a: np
     swap = Swap(released, (int(cage.i[0]), int(cage.j[0])), growth,
                 int(np.count_nonzero(~stable & vertex.stable)), rejoined=int(cage.rattlers.size))
     return Vertex(i_new, j_new, now_stable, refined, basis), swap
+
+
+def _search_at(refinement: Refinement, box: np.ndarray,
+               pair_list: PairList | None) -> tuple[NeighborSearch, PairList | None]:
+    """The pair search of a vertex, answered from the path's pair list (`LISTED_GAP`), which
+    is made again at the vertex once its particles have moved too far for the queries of a
+    pivot (relative gaps up to `LISTED_QUERY_GAP`). In a box too small for the list's cutoff
+    the tree answers every query."""
+    largest = float(refinement.diameters.max())
+    search = NeighborSearch(refinement.positions, refinement.diameters, box, pair_list=pair_list)
+    cutoff = largest * (1.0 + LISTED_GAP)
+    if not cutoff < search.half_period:
+        return search, None
+    if pair_list is None or search.listed_reach() < largest * (1.0 + LISTED_QUERY_GAP):
+        pair_list = search.pair_list(cutoff)
+        search = NeighborSearch(refinement.positions, refinement.diameters, box,
+                                pair_list=pair_list)
+    return search, pair_list
 
 
 def _jacobian_at(positions: np.ndarray, diameters: np.ndarray, box: np.ndarray,
