@@ -64,8 +64,8 @@ WIDENING = 4.0
 #: first one timed on the run's machine, so that the budget follows the machine and N):
 #: about two interior-point LPs of the same packing (one costs 30 to 75 such factorisations
 #: at N = 8192 and 16384). The N = 8192 quench to p = 1e-6 of seed 1 settles after 179
-#: pivots, 130 s, about 145 factorisations there; a network that needs more is left to the
-#: LP loop, which sees all of it at once.
+#: pivots (106 s with no budget); a network that needs more is left to the LP loop, which
+#: sees all of it at once.
 STAGE_PIVOT_FACTORIZATIONS = 150
 
 
