@@ -18,9 +18,9 @@ from scipy.spatial import cKDTree
 
 from .periodic import minimum_image, wrap
 
-__all__ = ["Pairs", "PairList", "NeighborSearch", "pairs_within", "close_pairs", "min_gap", "contact_shrink",
-           "shrink_to_margin", "check_no_duplicates", "CONTACT_MARGIN", "NEAR_CONTACT_SLACK",
-           "SAME_PLACE"]
+__all__ = ["Pairs", "PairList", "NeighborSearch", "pairs_within", "close_pairs", "min_gap",
+           "contact_shrink", "shrink_to_margin", "check_no_duplicates", "CONTACT_MARGIN",
+           "NEAR_CONTACT_SLACK", "SAME_PLACE"]
 
 #: Relative gap that `contact_shrink` leaves on the closest pair: far above the round-off of
 #: |r|/σ, far below any gap that matters to a start.

@@ -327,7 +327,8 @@ def _search_at(refinement: Refinement, box: np.ndarray,
     pivot (relative gaps up to `LISTED_QUERY_GAP`). In a box too small for the list's cutoff
     the tree answers every query."""
     largest = float(refinement.diameters.max())
-    search = NeighborSearch(refinement.positions, refinement.diameters, box, pair_list=pair_list)
+    search = NeighborSearch(refinement.positions, refinement.diameters, box,
+                            pair_list=pair_list)
     cutoff = largest * (1.0 + LISTED_GAP)
     if not cutoff < search.half_period:
         return search, None
