@@ -4,20 +4,23 @@ Reads certified results (``--inputs DIR ...``: folders or files, e.g. the folder
 ``bench/size_ensembles.py`` writes), repeats each one ``--tile K`` times along every axis of
 its periodic box (K^d N particles with the contacts and forces of the input in every copy:
 touching, positive and balanced as the input's, though K^d − 1 rigid translations of the
-copies against each other take the isostatic count off by (K^d − 1)(d − 1)), and takes ``--packings`` of them (the inputs cycled when
-there are fewer). Then it times, on one process:
+copies against each other take the isostatic count off by (K^d − 1)(d − 1)), and takes
+``--packings`` of them (the inputs cycled when there are fewer). Then it times, on one process:
 
 * ``analysis``: `calippso.analysis.analyze` of the tiled packings (pooled fits with 1000
   resamples, the window check);
 * ``report``: `calippso.report` of them into a temporary folder (figures, one history per
   run);
-* ``report, two sizes``: `calippso.report` of the tiled packings with the inputs themselves
-  (the per-size fits, the extrapolation and the figures across sizes).
+* ``report, two sizes``: `calippso.report` of the tiled packings with the packings of
+  ``--second-size`` (by default the inputs themselves, when they are tiled): the per-size
+  fits, the extrapolation and the figures across sizes.
 
-Run alone on the machine::
+Run alone on the machine, on tiled packings or on packings of the size itself::
 
     python bench/finite_size_analysis.py --inputs DIR/d3_n1024 \\
         --tile 2 --packings 50 --json rows.json
+    python bench/finite_size_analysis.py --inputs DIR/d3_n8192 --tile 1 \\
+        --packings 50 --second-size DIR/d3_n1024
 
 Prints one row per case (packings, N, seconds) and writes them to ``--json``.
 """
@@ -92,21 +95,28 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--inputs", type=Path, nargs="+", required=True)
     parser.add_argument("--tile", type=int, default=2)
     parser.add_argument("--packings", type=int, default=50)
+    parser.add_argument("--second-size", type=Path, nargs="+", default=None,
+                        help="results of another size for the two-size report (default: "
+                             "the inputs, when --tile is above 1)")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args(argv)
     inputs = read_inputs(args.inputs)
+    second = (read_inputs(args.second_size) if args.second_size is not None
+              else inputs if args.tile > 1 else [])
     large = [tiled_result(r, args.tile) for r in itertools.islice(itertools.cycle(inputs),
                                                                    args.packings)]
     n_large = sorted({r.packing.n for r in large})
-    n_small = sorted({r.packing.n for r in inputs})
+    n_small = sorted({r.packing.n for r in second})
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         cases = [("analysis", large, n_large,
                   lambda: calippso.analysis.analyze(large)),
                  ("report", large, n_large,
                   lambda: calippso.report(large, Path(folder) / "large")),
-                 ("report, two sizes", large + inputs, n_small + n_large,
-                  lambda: calippso.report(large + inputs, Path(folder) / "sizes"))]
+                 ("report, two sizes", large + second, n_small + n_large,
+                  lambda: calippso.report(large + second, Path(folder) / "sizes"))]
+        if not second:   # packings of one size only
+            cases = cases[:2]
         print("| case | packings | N | distinct inputs | s |")
         print("|---|---|---|---|---|")
         for name, results, sizes, call in cases:

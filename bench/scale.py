@@ -18,6 +18,8 @@ pressure --pressure, then `jam`. `--generator quench`: the soft-sphere quench
         --set network_first=require          # fails fast when network first cannot settle
     python bench/scale.py --generator quench --settle-excess 16 --cases 3:8192  # ends the
         # quench at the first overlap network that network first certifies
+    python bench/scale.py --generator quench --no-hint --cases 3:16384 --cache DIR \
+        --timeout 7200                       # positions only: jam guesses the network itself
     python bench/scale.py --container walls:x --cases 3:1024      # flat walls at x = 0, L
     python bench/scale.py --container cylinder:x,y --cases 3:1024  # a cylinder along z
 
@@ -55,6 +57,7 @@ CHILD = textwrap.dedent("""
     d, n, pressure, cache = int(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3]), sys.argv[4]
     options, generator, quench_pressure = json.loads(sys.argv[5]), sys.argv[6], sys.argv[7]
     seed, container, settle_excess = int(sys.argv[8]), sys.argv[9], int(sys.argv[10])
+    hint = sys.argv[11] == "hint"
     boundaries = calippso.Boundaries.all_periodic(d)
     if container != "periodic":
         kind, axes = container.split(":")
@@ -107,7 +110,7 @@ CHILD = textwrap.dedent("""
         if settle is not None and settle.certified is not None:
             result = settle.certified
         else:
-            result = calippso.jam(start, network=network, **options)
+            result = calippso.jam(start, network=network if hint else None, **options)
     except calippso.JammingError as error:   # e.g. network_first="require" refused
         print(json.dumps({"n": n, "d": d, "generator": generator, "generate": generate,
                           "total": time.perf_counter() - clock + tried, "error": str(error),
@@ -122,6 +125,7 @@ CHILD = textwrap.dedent("""
                        walls_near_contact(search, packing.boundaries).smallest_gap())
     print(json.dumps({
         "n": n, "d": d, "generator": generator, "generate": generate, "container": container,
+        "hint": hint and network is not None,
         "lps": result.iterations, "rows": int(history["rows"].max()),
         "total": total, "solver": float(history["solver_time"].sum()),
         "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -137,18 +141,21 @@ CHILD = textwrap.dedent("""
 def run_case(d: int, n: int, pressure: float, timeout: float, cache: str = "",
              options: dict | None = None, generator: str = "ls",
              quench_pressure: float | None = None, seed: int = 1,
-             container: str = "periodic", settle_excess: int | None = None) -> dict:
+             container: str = "periodic", settle_excess: int | None = None,
+             hint: bool = True) -> dict:
     """Generate (or read from `cache`) and jam one input in a subprocess with the jam
     `options`, in the `container` ("periodic", "walls:AXES" or "cylinder:AXES"); the row as
     a dict. `settle_excess` (quench only): end the quench at the first overlap network
     within that many contacts of isostatic that network first certifies
-    (`calippso.NetworkFirstSettle`)."""
+    (`calippso.NetworkFirstSettle`). Without `hint`, `jam` gets the positions only, not the
+    quench's overlap network."""
     try:
         done = subprocess.run([sys.executable, "-c", CHILD, str(d), str(n), str(pressure), cache,
                                json.dumps(options or {}), generator,
                                "default" if quench_pressure is None else str(quench_pressure),
                                str(seed), container,
-                               str(-1 if settle_excess is None else settle_excess)],
+                               str(-1 if settle_excess is None else settle_excess),
+                               "hint" if hint else "no-hint"],
                               capture_output=True, text=True, timeout=timeout, check=True)
     except subprocess.TimeoutExpired:
         return {"n": n, "d": d, "timeout": timeout}
@@ -261,6 +268,9 @@ def main() -> None:
                         help="quench only: network first tries each settled overlap network "
                              "within K contacts of isostatic during the quench, which ends at "
                              "the first one certified (jam s is then the time of the tries)")
+    parser.add_argument("--no-hint", action="store_true",
+                        help="quench only: jam the positions alone, without the quench's "
+                             "overlap network as the hint")
     parser.add_argument("--container", default="periodic",
                         help="periodic (default), walls:AXES or cylinder:AXES, e.g. walls:x,y")
     args = parser.parse_args()
@@ -281,7 +291,7 @@ def main() -> None:
         d, n = (int(v) for v in case.split(":"))
         rows.append(run_case(d, n, args.pressure, args.timeout, args.cache, options,
                              args.generator, args.quench_pressure, args.seed,
-                             args.container, args.settle_excess))
+                             args.container, args.settle_excess, not args.no_hint))
         print(format_row(rows[-1]), flush=True)
         if args.json:
             with open(args.json, "w") as stream:
