@@ -11,7 +11,7 @@ import calippso
 import generators
 from calippso.analysis import PooledSample, critical_exponents, exponent_from_sample
 from calippso.analysis.collapse import collapsed_cumulative, gap_cutoff
-from calippso.analysis.extrapolation import extrapolate
+from calippso.analysis.extrapolation import OMEGA_AT_BOUND, OMEGA_RANGE, extrapolate
 from calippso.analysis.finite_size import finite_size_analysis, packings_needed
 
 GAMMA, THETA_E = 0.41269, 0.42311
@@ -117,6 +117,23 @@ def test_a_known_form_recovers_its_limit_with_a_narrower_interval():
     assert known.interval[0] < THETA_E < known.interval[1]
     assert np.diff(known.interval)[0] < np.diff(fitted.interval)[0]
     assert known.chosen.amplitude == pytest.approx(-30.0, rel=0.5)
+
+
+def test_a_fitted_omega_at_its_lower_bound_says_no_trend_is_resolved():
+    """Four sizes with no trend, the last one high (θ_e of the d = 3 study): ω runs to the
+    lower end of its range, and the reason says so beside the constant form's fit; a
+    resolved trend says nothing of the kind."""
+    sizes = [1024, 2048, 4096, 8192]
+    values = [0.407, 0.393, 0.416, 0.425]
+    intervals = [[0.367, 0.444], [0.352, 0.431], [0.382, 0.447], [0.398, 0.455]]
+    flat = extrapolate(sizes, values, intervals, n_draws=400)
+    assert flat.chosen.omega == pytest.approx(OMEGA_RANGE[0], rel=OMEGA_AT_BOUND)
+    constant = flat.candidates["constant"]
+    assert "lower bound" in flat.reason and f"{constant.value:.4g}" in flat.reason
+    assert constant.value == pytest.approx(0.413, abs=0.002)
+    n, x, trend_intervals = _trend(sizes, GAMMA, -20.0, 1.0, 0.002, np.random.default_rng(5))
+    resolved = extrapolate(n, x, trend_intervals, n_draws=400)
+    assert resolved.chosen.omega > OMEGA_RANGE[0] * 2 and "lower bound" not in resolved.reason
 
 
 def test_few_sizes_assume_one_over_n():

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.stats import chi2, norm
 
-__all__ = ["FORMS", "OMEGA_RANGE", "Correction", "Extrapolation",
+__all__ = ["FORMS", "OMEGA_RANGE", "OMEGA_AT_BOUND", "Correction", "Extrapolation",
            "extrapolate", "sigma_of_interval"]
 
 #: Correction forms accepted by `extrapolate` (besides "auto").
@@ -48,6 +48,9 @@ FORMS = ("constant", "inverse_n", "power")
 #: Bounds of a fitted correction exponent ω (below 0.1, N^(−ω) cannot be told from a
 #: constant over the decades of N that packings span, and x_∞ runs away).
 OMEGA_RANGE = (0.1, 3.0)
+#: A fitted ω within this fraction of the lower bound of `OMEGA_RANGE` sits at the bound:
+#: the sizes resolve no trend, and the reason says so beside the constant form's fit.
+OMEGA_AT_BOUND = 1e-3
 #: Points of the ω grid on which a fitted ω is searched (log-spaced over `OMEGA_RANGE`).
 OMEGA_GRID_POINTS = 241
 #: Draws of the parametric bootstrap by default.
@@ -327,6 +330,11 @@ def extrapolate(sizes, values, intervals, *, form: str = "auto", omega: float | 
         raise ValueError(f"form {form!r} has more parameters than there are sizes "
                          f"({n.size}): measure more sizes or fix omega")
     best = candidates[chosen]
+    if best.omega_fitted and best.omega <= OMEGA_RANGE[0] * (1.0 + OMEGA_AT_BOUND):
+        flat = candidates["constant"]
+        reason += (f"; ω ran to its lower bound {OMEGA_RANGE[0]:g}: these sizes resolve no "
+                   f"trend, and the interval is that of a drift without end (the constant "
+                   f"fits with χ² p = {flat.p_value:.2g}: {flat.value:.4g})")
     inflation = math.sqrt(best.chi2 / best.dof) if best.dof > 0 else 1.0
     rng = np.random.default_rng(seed)
     draws = x + rng.standard_normal((n_draws, n.size)) * sigmas * max(1.0, inflation)
