@@ -27,6 +27,10 @@ every row of the folder (made now or before). Then ``calippso report DIR/d3_n*``
 defaults of `calippso.analysis`) and prints how many packings would bring the interval of γ
 to ± `GAMMA_HALF_WIDTH` and that of θ_e to ± `THETA_E_HALF_WIDTH`
 (`calippso.analysis.packings_needed`: the width falls as 1/√packings).
+
+``--window-scan`` makes nothing either: per size it fits γ on the pooled gaps with the top of
+the fit window moved from 1e-4 to 1e-1 (`calippso.analysis.window_scan`, maximum likelihood,
+pure power law), the check that the fitted γ does not follow the window.
 """
 
 from __future__ import annotations
@@ -47,6 +51,8 @@ CHECKPOINT_EVERY = 30.0
 #: Half-widths of the 95 % intervals the study aims at (issue targets).
 GAMMA_HALF_WIDTH = 0.02
 THETA_E_HALF_WIDTH = 0.04
+#: Largest gap pooled for the window scan (above its largest window top, 1e-1).
+SCAN_MAX_GAP = 0.5
 
 
 @contextmanager
@@ -115,21 +121,27 @@ def make_packing(n: int, d: int, seed: int, folder: Path, lock: str | None) -> d
     return row
 
 
+def size_folders(out: Path, d: int):
+    """(folder, packing files, results) of every size folder of `out` that holds packings,
+    in increasing N."""
+    import calippso
+
+    for folder in sorted(out.glob(f"d{d}_n*"), key=lambda f: int(f.name.split("_n")[1])):
+        files = sorted(folder.glob("packing_*.npz"))
+        if files:
+            yield folder, files, [calippso.load_result(f) for f in files]
+
+
 def estimate(out: Path, d: int) -> list[dict]:
     """Per size folder: the exponents of its packings and the packings needed for the
     target intervals (printed as a table)."""
-    import calippso
     from calippso.analysis import critical_exponents, packings_needed
 
     rows = []
     print("| N | packings | γ | θ_e | θ_ℓ | θ | packings for γ ± "
           f"{GAMMA_HALF_WIDTH:g} | for θ_e ± {THETA_E_HALF_WIDTH:g} |")
     print("|---|---|---|---|---|---|---|---|")
-    for folder in sorted(out.glob(f"d{d}_n*"), key=lambda f: int(f.name.split("_n")[1])):
-        files = sorted(folder.glob("packing_*.npz"))
-        if not files:
-            continue
-        results = [calippso.load_result(f) for f in files]
+    for folder, files, results in size_folders(out, d):
         try:
             fitted = critical_exponents(results)
         except ValueError as error:
@@ -148,6 +160,26 @@ def estimate(out: Path, d: int) -> list[dict]:
         rows.append({"n": n, "packings": len(files), "needed": need,
                      **{name: {"value": e.value, "interval": list(e.interval)}
                         for name, e in fitted.items()}})
+    return rows
+
+
+def window_scan_rows(out: Path, d: int) -> list[dict]:
+    """Per size folder: γ of its pooled gaps against the top of the fit window (printed as a
+    table, one column per top)."""
+    from calippso.analysis import window_scan
+    from calippso.analysis.gaps import pooled_gaps
+
+    rows = []
+    for _, files, results in size_folders(out, d):
+        scan = window_scan("gamma", pooled_gaps(results, SCAN_MAX_GAP), largest=SCAN_MAX_GAP)
+        if not rows:
+            print("| N | packings | " + " | ".join(f"top {r['upper']:.1e}" for r in scan) + " |")
+            print("|---|---|" + "---|" * len(scan))
+        n = results[0].packing.n
+        print(f"| {n} | {len(files)} | " + " | ".join(f"{r['power_law']:.3f}" for r in scan)
+              + " |", flush=True)
+        rows.append({"n": n, "packings": len(files),
+                     "gamma": [{"upper": r["upper"], "value": r["power_law"]} for r in scan]})
     return rows
 
 
@@ -200,9 +232,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--estimate", action="store_true",
                         help="fit the packings made and print the packings needed")
+    parser.add_argument("--window-scan", action="store_true",
+                        help="fit gamma of the packings made against the window's top")
     args = parser.parse_args(argv)
-    if args.estimate:
-        rows = estimate(args.out, args.d)
+    if args.estimate or args.window_scan:
+        rows = (estimate if args.estimate else window_scan_rows)(args.out, args.d)
         if args.json is not None:
             args.json.write_text(json.dumps(rows, indent=1) + "\n")
         return

@@ -20,7 +20,9 @@ fitted ω gives a 95 % interval that covers x_∞ in 96–100 % of the samples, 
 the form by the lowest AICc covers it in 0–39 % once ω < 1: four to six sizes cannot tell a
 slow correction from a constant or 1/N, and the simpler form then extrapolates short
 (docs/notes/finite-size.md, `bench/extrapolation_coverage.py`). The price is the width: the
-interval of the fitted ω is 5–10 times wider than that of a form assumed.
+interval of the fitted ω is 5–10 times wider than that of a form assumed. A fitted ω at the
+lower end of `OMEGA_RANGE` means that the sizes resolve no trend: the reason then says so and
+gives the constant form's fit.
 Every form that the sizes allow is fitted and kept beside the choice with its χ², p-value
 and small-sample Akaike criterion AICc = χ² + 2k + 2k(k + 1)/(S − k − 1) (S sizes, k
 parameters; defined for S > k + 1), so that a form known in advance can be asked for.
